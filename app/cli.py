@@ -1,0 +1,133 @@
+"""``vrpreview``: the window, or headless ``render`` / ``bench`` / ``demo`` runs."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import os
+import sys
+from pathlib import Path
+
+from app.settings import Settings, SettingsError
+
+EXIT_USAGE = 2
+
+
+def _common(p: argparse.ArgumentParser, scene_required: bool = False) -> None:
+    p.add_argument("--scene", default=None if scene_required else "showroom",
+                   required=scene_required,
+                   help="built-in scene (showroom, showroom-100, texture-test) or a model file "
+                        "(.gltf .glb .obj .ply)")
+    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="KEY=VALUE",
+                   help="change a setting, e.g. --set stereo.ipd_mm=60 (repeatable)")
+    p.add_argument("--preset", help="settings preset saved from the window (JSON)")
+    p.add_argument("--path", help="camera+gaze path (JSON) instead of the scene's default")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="vrpreview", description="Stereo VR preview for interiors.",
+        epilog="Without a command the window opens (or, with no display, the headless demo runs).")
+    _common(parser)
+    parser.add_argument("--list-settings", action="store_true", help="print every setting key")
+    sub = parser.add_subparsers(dest="command")
+    r = sub.add_parser("render", help="render one stereo frame of the path to a PNG")
+    _common(r, scene_required=True)
+    r.add_argument("--out", required=True, help="PNG file to write")
+    r.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
+    r.add_argument("--frame", type=int, default=0, help="frame N of the path (1/60 s steps)")
+    b = sub.add_parser("bench", help="replay the path headless and write timings as JSON")
+    _common(b, scene_required=True)
+    b.add_argument("--out", required=True, help="JSON file to write")
+    b.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
+    b.add_argument("--frames", type=int, default=120, help="frames to time (0: the whole path)")
+    b.add_argument("--warmup", type=int, default=5, help="frames rendered before timing")
+    d = sub.add_parser("demo", help="walk the default path headless: screenshots + summary")
+    _common(d)
+    d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
+    d.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
+    return parser
+
+
+def _settings(args: argparse.Namespace) -> Settings:
+    settings = Settings.load(args.preset) if args.preset else Settings()
+    settings.apply(args.assignments)
+    return settings
+
+
+def _progress(label: str):
+    def report(done: int, total: int) -> None:
+        if done == total or done % 30 == 0:
+            print(f"\r{label}: {done}/{total} frames", end="\n" if done == total else "",
+                  file=sys.stderr, flush=True)
+
+    return report
+
+
+def has_display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    args = build_parser().parse_args(argv)
+    from app.loaders import SceneLoadError
+    from app.paths import CameraPath, PathError
+    from render.context import GLUnavailableError
+    from render.shaders import ShaderError
+
+    try:
+        settings = _settings(args)
+        if args.list_settings:
+            for key in settings.keys():
+                meta = settings.describe(key)
+                print(f"{key} = {settings.get(key)!r}  # {meta.get('help', '')}")
+            return 0
+        path = CameraPath.load(args.path) if args.path else None
+        return _run(args, settings, path)
+    except (SettingsError, SceneLoadError, PathError, GLUnavailableError, ShaderError,
+            ValueError, OSError) as exc:
+        print(f"vrpreview: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+def _run(args: argparse.Namespace, settings: Settings, path) -> int:
+    from app import bench
+
+    if args.command == "render":
+        size = bench.parse_size(args.size)
+        bench.render_frame(args.scene, args.out, size, args.frame, settings, path)
+        print(f"wrote {args.out}")
+        return 0
+    if args.command == "bench":
+        size = bench.parse_size(args.size)
+        result = bench.bench(args.scene, size, args.frames, settings, args.warmup, path,
+                             _progress("bench"))
+        from app.fileio import atomic_write_json
+
+        atomic_write_json(args.out, result)
+        passes = ", ".join(f"{k} {v['median_ms']:.1f}" for k, v in result["passes"].items())
+        print(f"{result['scene']['name']} {args.size}: {result['fps_median']:.1f} fps, "
+              f"frame {result['frame_ms']['median']:.1f} ms median; passes (ms) {passes}")
+        print(f"wrote {args.out}")
+        return 1 if result["errors"] else 0
+    if args.command == "demo" or not has_display():
+        if args.command != "demo":
+            print("vrpreview: no display found (DISPLAY/WAYLAND_DISPLAY unset): running the "
+                  "default walkthrough headless instead; screenshots and a frame-time summary "
+                  "go to out/", file=sys.stderr)
+        out_dir = Path(getattr(args, "out_dir", "out"))
+        size = bench.parse_size(getattr(args, "size", "1280x720"))
+        summary = bench.demo(args.scene, out_dir, size, settings,
+                             progress=_progress("walkthrough"))
+        print(f"{summary['frames']} frames, {summary['fps_median']:.1f} fps median; "
+              f"{len(summary['screenshots'])} screenshots and summary.json in {out_dir}/")
+        return 0
+    # The window: ui/ is the only layer that imports Qt, loaded here on demand.
+    window = importlib.import_module("ui.main_window")
+    return int(window.run(args.scene, settings, path))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

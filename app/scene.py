@@ -1,0 +1,260 @@
+"""The scene model: meshes, materials, textures, point lights and a spawn viewpoint.
+
+Plain numpy data with no GL or Qt: loaders and the procedural showroom build it, the renderer
+uploads it, and the navigation and gaze code ray-cast against it. :meth:`Scene.sanitized` is the
+single place where bad input (NaN/inf vertices, degenerate triangles, broken lights) is repaired
+or dropped, so nothing downstream has to guess.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Texture:
+    """An RGBA8 image, row 0 at the top, as authored (sRGB colour)."""
+
+    name: str
+    rgba: np.ndarray  # (H, W, 4) uint8
+    repeat: bool = True
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return int(self.rgba.shape[1]), int(self.rgba.shape[0])
+
+
+@dataclass
+class Material:
+    name: str
+    base_color: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)  # linear RGBA
+    texture: int | None = None  # index into Scene.textures
+    roughness: float = 0.6
+    metallic: float = 0.0
+    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass
+class Mesh:
+    """One drawable object: an indexed triangle list with one material."""
+
+    name: str
+    positions: np.ndarray  # (N, 3) float32, world space, Y up, metres
+    normals: np.ndarray  # (N, 3) float32, unit length
+    uvs: np.ndarray  # (N, 2) float32, may leave [0, 1] (repeat wrapping)
+    indices: np.ndarray  # (M, 3) uint32
+    material: int = 0
+    colors: np.ndarray | None = None  # (N, 3) float32 linear vertex colours, or None
+
+    @property
+    def triangle_count(self) -> int:
+        return int(self.indices.shape[0])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.positions.min(axis=0), self.positions.max(axis=0)
+
+
+@dataclass
+class PointLight:
+    position: tuple[float, float, float]
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    intensity: float = 10.0  # candela-like: radiance scale at 1 m
+    range_m: float = 10.0  # the light contributes nothing beyond this distance
+
+
+@dataclass
+class Viewpoint:
+    position: tuple[float, float, float]
+    yaw_deg: float = 0.0  # 0 looks down -Z, positive turns left (counter-clockwise from above)
+    pitch_deg: float = 0.0
+
+
+@dataclass
+class Scene:
+    name: str
+    meshes: list[Mesh]
+    materials: list[Material]
+    textures: list[Texture] = field(default_factory=list)
+    lights: list[PointLight] = field(default_factory=list)
+    spawn: Viewpoint = field(default_factory=lambda: Viewpoint((0.0, 1.6, 0.0)))
+    floor_y: float | None = None  # floor height under the spawn, if known
+    source: str = ""  # file path, or "built-in"
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def triangle_count(self) -> int:
+        return sum(m.triangle_count for m in self.meshes)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self.meshes:
+            return np.zeros(3, np.float32), np.zeros(3, np.float32)
+        lo = np.min([m.bounds()[0] for m in self.meshes], axis=0)
+        hi = np.max([m.bounds()[1] for m in self.meshes], axis=0)
+        return lo, hi
+
+    def triangles(self) -> np.ndarray:
+        """All triangles as a (T, 3, 3) float32 array (for ray casting)."""
+        if not self.meshes:
+            return np.zeros((0, 3, 3), np.float32)
+        return np.concatenate([m.positions[m.indices] for m in self.meshes]).astype(np.float32)
+
+    def triangle_owner(self) -> np.ndarray:
+        """Mesh index of each triangle in :meth:`triangles` order."""
+        return np.concatenate(
+            [np.full(m.triangle_count, i, np.int32) for i, m in enumerate(self.meshes)]
+            or [np.zeros(0, np.int32)]
+        )
+
+    def sanitized(self) -> Scene:
+        """A copy with every non-finite or degenerate piece repaired or dropped (and noted)."""
+        notes: list[str] = list(self.warnings)
+        meshes = []
+        for m in self.meshes:
+            fixed = _sanitize_mesh(m, len(self.materials), notes)
+            if fixed is not None:
+                meshes.append(fixed)
+        textures = [_sanitize_texture(t, notes) for t in self.textures]
+        materials = [_sanitize_material(mat, len(textures), notes) for mat in self.materials]
+        if not materials:
+            materials = [Material("default")]
+        lights = []
+        for i, light in enumerate(self.lights):
+            fixed_light = _sanitize_light(light)
+            if fixed_light is None:
+                notes.append(f"light {i}: non-finite position or colour, dropped")
+            else:
+                lights.append(fixed_light)
+        sp = self.spawn
+        spawn = Viewpoint(
+            tuple(_finite(v, 0.0) for v in sp.position),  # type: ignore[arg-type]
+            _finite(sp.yaw_deg, 0.0),
+            float(np.clip(_finite(sp.pitch_deg, 0.0), -89.0, 89.0)),
+        )
+        return replace(self, meshes=meshes, materials=materials, textures=textures,
+                       lights=lights, spawn=spawn, warnings=notes)
+
+
+def _finite(v: float, fallback: float) -> float:
+    v = float(v)
+    return v if math.isfinite(v) else fallback
+
+
+def _sanitize_mesh(m: Mesh, n_materials: int, notes: list[str]) -> Mesh | None:
+    pos = np.asarray(m.positions, np.float32).reshape(-1, 3)
+    idx = np.asarray(m.indices).reshape(-1, 3)
+    n = pos.shape[0]
+    if n == 0 or idx.shape[0] == 0:
+        notes.append(f"mesh '{m.name}': no triangles, dropped")
+        return None
+    idx = idx.astype(np.int64)
+    ok = np.all((idx >= 0) & (idx < n), axis=1)
+    good_vertex = np.all(np.isfinite(pos), axis=1)
+    ok &= np.all(good_vertex[np.clip(idx, 0, n - 1)], axis=1)
+    if ok.any():
+        tri = pos[np.clip(idx[ok], 0, n - 1)].astype(np.float64)
+        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        keep = np.zeros(ok.shape, bool)
+        keep[np.flatnonzero(ok)] = area2 > 1e-12
+        ok = keep
+    dropped = int((~ok).sum())
+    if dropped:
+        notes.append(f"mesh '{m.name}': {dropped} invalid or degenerate triangles dropped")
+    idx = idx[ok]
+    if idx.shape[0] == 0:
+        notes.append(f"mesh '{m.name}': nothing valid left, dropped")
+        return None
+    pos = np.where(np.isfinite(pos), pos, 0.0).astype(np.float32)
+    normals = np.asarray(m.normals, np.float32).reshape(-1, 3)
+    if normals.shape[0] != n:
+        normals = np.zeros((n, 3), np.float32)
+    lengths = np.linalg.norm(np.where(np.isfinite(normals), normals, 0.0), axis=1)
+    bad = ~np.isfinite(normals).all(axis=1) | (lengths < 1e-8)
+    if bad.any():
+        normals = normals.copy()
+        normals[bad] = vertex_normals(pos, idx)[bad]
+    normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    uvs = np.asarray(m.uvs, np.float32).reshape(-1, 2) if m.uvs is not None else None
+    if uvs is None or uvs.shape[0] != n:
+        uvs = np.zeros((n, 2), np.float32)
+    uvs = np.where(np.isfinite(uvs), uvs, 0.0).astype(np.float32)
+    colors = m.colors
+    if colors is not None:
+        colors = np.asarray(colors, np.float32).reshape(-1, colors.shape[-1])[:, :3]
+        colors = np.clip(np.where(np.isfinite(colors), colors, 1.0), 0.0, 1.0) \
+            if colors.shape[0] == n else None
+    material = m.material if 0 <= m.material < max(n_materials, 1) else 0
+    return Mesh(m.name, pos, normals.astype(np.float32), uvs, idx.astype(np.uint32), material,
+                colors)
+
+
+def _sanitize_texture(t: Texture, notes: list[str]) -> Texture:
+    rgba = np.asarray(t.rgba)
+    if rgba.ndim == 2:
+        rgba = rgba[:, :, None]
+    if rgba.ndim != 3 or rgba.shape[0] < 1 or rgba.shape[1] < 1:
+        notes.append(f"texture '{t.name}': unusable shape {rgba.shape}, replaced by magenta")
+        rgba = np.array([[[255, 0, 255, 255]]], np.uint8)
+    if rgba.dtype != np.uint8:
+        f = rgba.astype(np.float64)
+        if np.issubdtype(rgba.dtype, np.integer):
+            f = f / float(np.iinfo(rgba.dtype).max)
+        f = np.clip(np.nan_to_num(f, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+        rgba = (f * 255.0 + 0.5).astype(np.uint8)
+    c = rgba.shape[2]
+    if c == 1:
+        rgba = np.concatenate([np.repeat(rgba, 3, axis=2), np.full_like(rgba, 255)], axis=2)
+    elif c == 2:
+        rgba = np.concatenate([np.repeat(rgba[:, :, :1], 3, axis=2), rgba[:, :, 1:2]], axis=2)
+    elif c == 3:
+        rgba = np.concatenate([rgba, np.full(rgba.shape[:2] + (1,), 255, np.uint8)], axis=2)
+    elif c > 4:
+        rgba = rgba[:, :, :4]
+    return Texture(t.name, np.ascontiguousarray(rgba), t.repeat)
+
+
+def _sanitize_material(mat: Material, n_textures: int, notes: list[str]) -> Material:
+    def clean(values: tuple[float, ...], fallback: float) -> tuple[float, ...]:
+        return tuple(float(np.clip(_finite(v, fallback), 0.0, 1e4)) for v in values)
+
+    tex = mat.texture if mat.texture is not None and 0 <= mat.texture < n_textures else None
+    if mat.texture is not None and tex is None:
+        notes.append(f"material '{mat.name}': texture {mat.texture} missing, colour only")
+    base = clean(mat.base_color, 1.0)
+    return Material(mat.name, (min(base[0], 1.0), min(base[1], 1.0), min(base[2], 1.0),
+                               min(base[3], 1.0)),
+                    tex, float(np.clip(_finite(mat.roughness, 0.6), 0.02, 1.0)),
+                    float(np.clip(_finite(mat.metallic, 0.0), 0.0, 1.0)),
+                    clean(mat.emissive, 0.0))  # type: ignore[arg-type]
+
+
+def _sanitize_light(light: PointLight) -> PointLight | None:
+    if not all(math.isfinite(v) for v in light.position):
+        return None
+    color = tuple(_finite(c, -1.0) for c in light.color)
+    if any(c < 0 for c in color):
+        return None
+    intensity = _finite(light.intensity, 0.0)
+    intensity = float(np.clip(intensity, 0.0, 1e6))
+    rng = _finite(light.range_m, 0.0)
+    if rng <= 0.0:
+        return None  # a light that reaches nothing costs time and gives no light
+    return PointLight(light.position, color, intensity, min(rng, 1e5))  # type: ignore[arg-type]
+
+
+def vertex_normals(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals; vertices on no triangle get +Y."""
+    pos = positions.astype(np.float64)
+    idx = indices.astype(np.int64)
+    fn = np.cross(pos[idx[:, 1]] - pos[idx[:, 0]], pos[idx[:, 2]] - pos[idx[:, 0]])
+    out = np.zeros_like(pos)
+    for k in range(3):
+        np.add.at(out, idx[:, k], fn)
+    lengths = np.linalg.norm(out, axis=1, keepdims=True)
+    out = np.where(lengths > 1e-20, out / np.maximum(lengths, 1e-20), [0.0, 1.0, 0.0])
+    return out.astype(np.float32)

@@ -1,0 +1,65 @@
+"""Scene names the user can type: the built-in scenes, or a path to a model file."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from app.paths import CameraPath, PathKey, builtin_path
+from app.scene import Scene
+
+
+def _showroom(lights: int) -> Callable[[], Scene]:
+    def build() -> Scene:
+        from assets.showroom import build_showroom
+
+        return build_showroom(lights=lights)
+
+    return build
+
+
+def _texture_test() -> Scene:
+    from assets.showroom import build_texture_test_scene
+
+    return build_texture_test_scene()
+
+
+BUILTIN: dict[str, Callable[[], Scene]] = {
+    "showroom": _showroom(4),
+    "showroom-100": _showroom(100),
+    "texture-test": _texture_test,
+}
+BUILTIN_PATHS = {"showroom": "showroom_walkthrough", "showroom-100": "showroom_walkthrough"}
+
+
+def resolve(name_or_path: str | os.PathLike[str]) -> Scene:
+    """A built-in scene by name, else a model file (raises SceneLoadError if unusable)."""
+    key = str(name_or_path)
+    if key in BUILTIN:
+        return BUILTIN[key]()
+    from app.loaders import load_scene
+
+    return load_scene(Path(key).expanduser())
+
+
+def default_path(scene: Scene) -> CameraPath:
+    """The scene's walkthrough; loaded files get a slow look around from the spawn."""
+    if scene.name in BUILTIN_PATHS and scene.source == "built-in":
+        return builtin_path(BUILTIN_PATHS[scene.name])
+    return look_around(scene)
+
+
+def look_around(scene: Scene, seconds: float = 6.0) -> CameraPath:
+    """Stand at the spawn, turn 30 degrees each way, the gaze sweeping, then hold a fixed gaze."""
+    sp = scene.spawn
+    yaw, pitch = sp.yaw_deg, sp.pitch_deg
+    pos = tuple(float(v) for v in sp.position)
+    keys = [
+        PathKey(0.0, pos, yaw, pitch, (0.5, 0.5)),
+        PathKey(seconds * 0.25, pos, yaw + 30.0, pitch, (0.3, 0.45)),
+        PathKey(seconds * 0.5, pos, yaw, pitch, (0.6, 0.5)),
+        PathKey(seconds * 0.7, pos, yaw - 30.0, pitch, (0.7, 0.55), True),
+        PathKey(seconds, pos, yaw, pitch, (0.5, 0.5), True),
+    ]
+    return CameraPath(keys, scene.name)  # type: ignore[arg-type]

@@ -1,0 +1,188 @@
+"""All user-adjustable settings as one typed tree of dataclasses, addressed by dotted keys.
+
+The panels, the CLI (``--set key=value``), saved presets and the benchmark all go through
+:func:`Settings.set` / :func:`Settings.get`, so a key means the same thing everywhere and every
+value is validated in one place.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+from app.fileio import atomic_write_json
+
+
+class SettingsError(ValueError):
+    """A key that does not exist, or a value that does not fit its key."""
+
+
+def _opt(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
+         choices: tuple[str, ...] | None = None) -> Any:
+    return field(default=default, metadata={"help": help, "lo": lo, "hi": hi, "choices": choices})
+
+
+@dataclass
+class StereoSettings:
+    ipd_mm: float = _opt(64.0, "interpupillary distance (mm)", lo=0.0, hi=100.0)
+    fov_deg: float = _opt(95.0, "vertical field of view per eye (degrees)", lo=30.0, hi=130.0)
+    near_m: float = _opt(0.05, "near clipping plane (m)", lo=1e-4, hi=10.0)
+    far_m: float = _opt(200.0, "far clipping plane (m)", lo=1.0, hi=1e5)
+    convergence_m: float = _opt(2.0, "distance where the eyes' images coincide (m)", lo=0.1,
+                                hi=1e4)
+
+
+@dataclass
+class RenderSettings:
+    path: str = _opt("deferred", "rendering path", choices=("deferred", "forward"))
+    lighting: str = _opt("compute", "deferred lighting stage", choices=("compute", "fragment"))
+    exposure: float = _opt(1.0, "exposure before tone mapping", lo=0.0, hi=64.0)
+    brightness: float = _opt(1.0, "scales every light (1 = as authored)", lo=0.0, hi=16.0)
+    ambient: float = _opt(0.06, "constant ambient light", lo=0.0, hi=4.0)
+    overlay: bool = _opt(True, "draw the fps overlay in the view")
+
+
+@dataclass
+class NavigationSettings:
+    walk_speed_mps: float = _opt(1.4, "walking speed (m/s)", lo=0.0, hi=50.0)
+    turn_deg_per_px: float = _opt(0.15, "mouse-drag look sensitivity (deg/pixel)", lo=0.0, hi=5.0)
+    eye_height_m: float = _opt(1.6, "eye height above the floor (m)", lo=0.1, hi=3.0)
+    radius_m: float = _opt(0.25, "body radius for collision (m)", lo=0.0, hi=2.0)
+    collision: bool = _opt(True, "stop at walls")
+    fly: bool = _opt(False, "fly freely instead of walking on the floor")
+
+
+@dataclass
+class GazeSettings:
+    dwell: bool = _opt(False, "a cursor held still also fixes the gaze")
+    dwell_deg: float = _opt(1.5, "dwell: largest cursor motion still counted as still (deg)",
+                            lo=0.0, hi=30.0)
+    dwell_s: float = _opt(0.4, "dwell: how long the cursor must stay still (s)", lo=0.0, hi=10.0)
+
+
+@dataclass
+class Settings:
+    stereo: StereoSettings = field(default_factory=StereoSettings)
+    render: RenderSettings = field(default_factory=RenderSettings)
+    navigation: NavigationSettings = field(default_factory=NavigationSettings)
+    gaze: GazeSettings = field(default_factory=GazeSettings)
+
+    # -- dotted-key access -------------------------------------------------------------------
+    def _locate(self, key: str) -> tuple[Any, dataclasses.Field[Any]]:
+        parts = key.split(".")
+        node: Any = self
+        for i, name in enumerate(parts):
+            fields = {f.name: f for f in dataclasses.fields(node)}
+            if name not in fields:
+                raise SettingsError(f"unknown setting '{key}' (known: {', '.join(self.keys())})")
+            f = fields[name]
+            if i == len(parts) - 1:
+                if dataclasses.is_dataclass(getattr(node, name)):
+                    raise SettingsError(f"'{key}' is a section, not a setting")
+                return node, f
+            node = getattr(node, name)
+        raise SettingsError(f"unknown setting '{key}'")
+
+    def get(self, key: str) -> Any:
+        node, f = self._locate(key)
+        return getattr(node, f.name)
+
+    def set(self, key: str, value: Any) -> None:
+        node, f = self._locate(key)
+        setattr(node, f.name, _coerce(key, f, getattr(node, f.name), value))
+
+    def apply(self, assignments: list[str] | None) -> None:
+        """Apply ``key=value`` strings as given on the command line."""
+        for text in assignments or []:
+            key, sep, value = text.partition("=")
+            if not sep:
+                raise SettingsError(f"expected key=value, got '{text}'")
+            self.set(key.strip(), value.strip())
+
+    def keys(self) -> list[str]:
+        return list(_walk(self, ""))
+
+    def describe(self, key: str) -> dict[str, Any]:
+        _node, f = self._locate(key)
+        return dict(f.metadata)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def copy(self) -> Settings:
+        return copy.deepcopy(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Settings:
+        """Build settings from a (possibly partial) nested dict; unknown keys are an error."""
+        s = cls()
+        for key, value in _flatten(data, ""):
+            s.set(key, value)
+        return s
+
+    # -- presets on disk ---------------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str]) -> None:
+        atomic_write_json(path, {"vrpreview_settings": 1, "settings": self.to_dict()})
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Settings:
+        try:
+            with open(path, encoding="utf-8") as fh:
+                doc = json.load(fh)
+        except (OSError, json.JSONDecodeError) as exc:
+            raise SettingsError(f"cannot read settings preset {path}: {exc}") from exc
+        if not isinstance(doc, dict) or not isinstance(doc.get("settings"), dict):
+            raise SettingsError(f"{path} is not a vrpreview settings preset")
+        return cls.from_dict(doc["settings"])
+
+
+def _walk(node: Any, prefix: str):
+    for f in dataclasses.fields(node):
+        value = getattr(node, f.name)
+        if dataclasses.is_dataclass(value):
+            yield from _walk(value, f"{prefix}{f.name}.")
+        else:
+            yield f"{prefix}{f.name}"
+
+
+def _flatten(data: dict[str, Any], prefix: str):
+    for k, v in data.items():
+        if isinstance(v, dict):
+            yield from _flatten(v, f"{prefix}{k}.")
+        else:
+            yield f"{prefix}{k}", v
+
+
+def _coerce(key: str, f: dataclasses.Field[Any], current: Any, value: Any) -> Any:
+    meta = f.metadata
+    kind = type(current)
+    try:
+        if kind is bool:
+            if isinstance(value, str):
+                low = value.lower()
+                if low not in ("1", "0", "true", "false", "on", "off", "yes", "no"):
+                    raise ValueError(value)
+                out: Any = low in ("1", "true", "on", "yes")
+            else:
+                out = bool(value)
+        elif kind is int:
+            out = int(value)
+        elif kind is float:
+            out = float(value)
+            if not math.isfinite(out):
+                raise ValueError("not a finite number")
+        else:
+            out = str(value)
+    except (TypeError, ValueError) as exc:
+        raise SettingsError(f"{key}: cannot use {value!r} ({exc})") from exc
+    if meta.get("choices") and out not in meta["choices"]:
+        raise SettingsError(f"{key}: {out!r} is not one of {', '.join(meta['choices'])}")
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if lo is not None and out < lo or hi is not None and out > hi:
+        raise SettingsError(f"{key}: {out} is outside [{lo}, {hi}]")
+    return out

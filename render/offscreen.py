@@ -1,0 +1,72 @@
+"""Headless host: the same renderer into an offscreen texture; ``draw()`` returns pixels.
+
+Benchmarks, ``vrpreview render``, the no-display demo and the tests all use this host.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.frame import FrameInput
+from app.scene import Scene
+from app.settings import Settings
+from render.context import create_headless
+from render.renderer import Renderer
+
+
+class OffscreenHost:
+    def __init__(self, width: int, height: int, settings: Settings | None = None) -> None:
+        """``width`` x ``height`` is the whole side-by-side view (each eye is width/2)."""
+        self.width = max(2, int(width) // 2 * 2)
+        self.height = max(1, int(height))
+        self.settings = settings or Settings()
+        self.ctx = create_headless()
+        with self.ctx:
+            self.renderer = Renderer(self.ctx, self.settings)
+            self.color = self.ctx.texture((self.width, self.height), 4)
+            self.fbo = self.ctx.framebuffer([self.color])
+
+    @property
+    def eye_size(self) -> tuple[int, int]:
+        return self.width // 2, self.height
+
+    def set_scene(self, scene: Scene | None) -> None:
+        with self.ctx:
+            self.renderer.set_scene(scene)
+
+    def set_text_image(self, rgba: np.ndarray | None) -> None:
+        self.renderer.overlay.set_text_image(rgba)
+
+    def draw(self, frame: FrameInput) -> np.ndarray:
+        """Render one stereo frame; (H, W, 3) uint8 with row 0 at the top."""
+        with self.ctx:
+            self.fbo.use()
+            self.fbo.clear(0.0, 0.0, 0.0, 1.0)
+            self.renderer.render(frame, self.fbo)
+            data = self.fbo.read(components=3, alignment=1)
+        img = np.frombuffer(data, np.uint8).reshape(self.height, self.width, 3)
+        return np.ascontiguousarray(np.flipud(img))
+
+    def render_only(self, frame: FrameInput) -> None:
+        """Render and wait for the GPU, without reading pixels back (for timing)."""
+        with self.ctx:
+            self.fbo.use()
+            self.renderer.render(frame, self.fbo)
+            self.ctx.finish()
+
+    def read_hdr(self, eye: int) -> np.ndarray:
+        with self.ctx:
+            return self.renderer.read_hdr(eye)
+
+    def close(self) -> None:
+        with self.ctx:
+            self.renderer.release()
+            self.fbo.release()
+            self.color.release()
+        self.ctx.release()
+
+    def __enter__(self) -> OffscreenHost:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

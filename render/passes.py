@@ -1,0 +1,311 @@
+"""Render passes: small classes with named inputs and outputs, an ``enabled`` flag and a timer.
+
+A frame is a short list of these (see ``Renderer.render``). Each pass owns the GL objects it
+creates and releases them; none are created per frame.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from app.camera import EyeView, gl_bytes
+from render.gpu_scene import GpuScene
+from render.shaders import ShaderLibrary
+
+log = logging.getLogger(__name__)
+BACKGROUND = (0.02, 0.02, 0.025)
+
+
+class EyeTargets:
+    """One eye's G-buffer and HDR colour, resized with the view."""
+
+    def __init__(self, ctx: moderngl.Context, width: int, height: int) -> None:
+        self.size = (width, height)
+        self.albedo = ctx.texture(self.size, 4)  # rgb albedo, a metallic
+        self.normal = ctx.texture(self.size, 4, dtype="f2")  # xyz normal, w roughness
+        self.depth = ctx.depth_texture(self.size)
+        self.color = ctx.texture(self.size, 4, dtype="f2")  # linear HDR radiance
+        for t in (self.albedo, self.normal, self.depth, self.color):
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            t.repeat_x = t.repeat_y = False
+        self.gbuffer = ctx.framebuffer([self.albedo, self.normal], self.depth)
+        self.forward = ctx.framebuffer([self.color], self.depth)
+
+    def release(self) -> None:
+        for obj in (self.gbuffer, self.forward, self.albedo, self.normal, self.depth, self.color):
+            obj.release()
+
+
+@dataclass
+class FrameContext:
+    """What every pass of one frame may read."""
+
+    eyes: list[EyeView]
+    targets: list[EyeTargets]
+    scene: GpuScene
+    light_scale: float
+    ambient: float
+    exposure: float
+    out: moderngl.Framebuffer
+    out_origin: tuple[int, int]  # lower-left of the stereo view inside ``out``
+    gaze: tuple[float, float]
+    gaze_fixed: bool
+
+
+class RenderPass:
+    name = "pass"
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
+        self.ctx = ctx
+        self.shaders = shaders
+        self.enabled = True
+        self._query = ctx.query(time=True)
+        self.last_ms = 0.0
+        self.samples = 0  # shaded samples in the last frame, where the pass knows them
+        self._fullscreen_vaos: dict[int, moderngl.VertexArray] = {}
+
+    def run(self, frame: FrameContext) -> None:
+        if not self.enabled:
+            self.last_ms = 0.0
+            return
+        with self._query:
+            self.execute(frame)
+        self.last_ms = self._query.elapsed / 1e6
+
+    def execute(self, frame: FrameContext) -> None:
+        raise NotImplementedError  # each pass defines its work
+
+    def fullscreen(self, prog: moderngl.Program) -> None:
+        """Draw one viewport-covering triangle with ``prog`` (no vertex buffer)."""
+        vao = self._fullscreen_vaos.get(prog.glo)
+        if vao is None:
+            vao = self._fullscreen_vaos[prog.glo] = self.ctx.vertex_array(prog, [])
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+    def release(self) -> None:
+        _release_query(self._query)
+        for vao in self._fullscreen_vaos.values():
+            vao.release()
+        self._fullscreen_vaos.clear()
+
+
+def _scene_uniforms(prog: moderngl.Program, frame: FrameContext) -> None:
+    for name, value in (("u_light_count", len(frame.scene.lights)),
+                        ("u_light_scale", frame.light_scale), ("u_ambient", frame.ambient)):
+        if name in prog:
+            prog[name].value = value
+
+
+def _draw_meshes(ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameContext,
+                 eye: EyeView, fragment: str) -> None:
+    """Draw every mesh for one eye with its material (texture as a shader variant)."""
+    for index, mesh in enumerate(frame.scene.meshes):
+        prog = shaders.program("geometry.vert.glsl", fragment,
+                               {"HAS_TEXTURE": mesh.texture is not None})
+        prog["u_view_projection"].write(gl_bytes(eye.view_projection))
+        prog["u_base_color"].value = tuple(mesh.material.base_color)
+        if "u_roughness" in prog:
+            prog["u_roughness"].value = mesh.material.roughness
+        if "u_metallic" in prog:
+            prog["u_metallic"].value = mesh.material.metallic
+        if "u_eye" in prog:
+            prog["u_eye"].value = tuple(eye.position)
+            _scene_uniforms(prog, frame)
+        if mesh.texture is not None:
+            mesh.texture.use(0)
+            prog["u_albedo"].value = 0
+        frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
+
+
+class GBufferPass(RenderPass):
+    """Per eye: depth, world normal + roughness, albedo + metallic."""
+
+    name = "gbuffer"
+
+    def execute(self, frame: FrameContext) -> None:
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        for eye, tgt in zip(frame.eyes, frame.targets):
+            tgt.gbuffer.use()
+            tgt.gbuffer.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            _draw_meshes(ctx, self.shaders, frame, eye, "gbuffer.frag.glsl")
+        ctx.disable(moderngl.DEPTH_TEST)
+
+
+class LightingPass(RenderPass):
+    """Deferred lighting at full rate, in a compute shader (default) or a fragment shader."""
+
+    name = "lighting"
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
+        super().__init__(ctx, shaders)
+        self.stage = "compute"
+
+    def execute(self, frame: FrameContext) -> None:
+        frame.scene.light_buffer.bind_to_storage_buffer(0)
+        if self.stage == "compute":
+            prog = self.shaders.compute("lighting.comp.glsl")
+        else:
+            prog = self.shaders.program("fullscreen.vert.glsl", "lighting.frag.glsl")
+        _scene_uniforms(prog, frame)
+        prog["u_background"].value = BACKGROUND
+        self.samples = 0
+        for eye, tgt in zip(frame.eyes, frame.targets):
+            w, h = tgt.size
+            tgt.albedo.use(1)
+            tgt.normal.use(2)
+            tgt.depth.use(3)
+            prog["u_gb_albedo"].value, prog["u_gb_normal"].value = 1, 2
+            prog["u_gb_depth"].value = 3
+            prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
+            prog["u_eye"].value = tuple(eye.position)
+            prog["u_size"].value = (w, h)
+            if self.stage == "compute":
+                tgt.color.bind_to_image(0, read=False, write=True)
+                prog.run(math.ceil(w / 8), math.ceil(h / 8))
+            else:
+                tgt.forward.use()
+                self.fullscreen(prog)
+            self.samples += w * h
+        if self.stage == "compute":
+            self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
+                                    | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+
+class ForwardPass(RenderPass):
+    """The baseline: geometry lit per fragment, straight into each eye's HDR target."""
+
+    name = "forward"
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
+        super().__init__(ctx, shaders)
+        self._samples_query = ctx.query(samples=True)
+
+    def execute(self, frame: FrameContext) -> None:
+        ctx = self.ctx
+        frame.scene.light_buffer.bind_to_storage_buffer(0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        with self._samples_query:
+            for eye, tgt in zip(frame.eyes, frame.targets):
+                tgt.forward.use()
+                tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
+                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl")
+        self.samples = int(self._samples_query.samples)
+        ctx.disable(moderngl.DEPTH_TEST)
+
+    def release(self) -> None:
+        super().release()
+        _release_query(self._samples_query)
+
+
+class PresentPass(RenderPass):
+    """Both eyes side by side into the output, tone-mapped and sRGB-encoded."""
+
+    name = "present"
+
+    def execute(self, frame: FrameContext) -> None:
+        prog = self.shaders.program("fullscreen.vert.glsl", "present.frag.glsl")
+        w, h = frame.targets[0].size
+        frame.out.use()
+        x, y = frame.out_origin
+        frame.out.viewport = (x, y, 2 * w, h)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        frame.targets[0].color.use(0)
+        frame.targets[1].color.use(1)
+        prog["u_left"].value, prog["u_right"].value = 0, 1
+        prog["u_exposure"].value = frame.exposure
+        prog["u_eye_size"].value = (w, h)
+        prog["u_origin"].value = (x, y)
+        self.fullscreen(prog)
+
+
+class OverlayPass(RenderPass):
+    """Statistics text (drawn by the host into a small RGBA image) and the gaze marker.
+
+    Only the pixels it covers are touched (scissor rectangles), so it costs next to nothing.
+    """
+
+    name = "overlay"
+    MARKER = 12
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
+        super().__init__(ctx, shaders)
+        self.text_rgba: np.ndarray | None = None
+        self._text_tex: moderngl.Texture | None = None
+        self._dirty = False
+        self.show_text = True
+
+    def set_text_image(self, rgba: np.ndarray | None) -> None:
+        """An (h, w, 4) uint8 image, row 0 at the top; None hides the text."""
+        self.text_rgba = rgba
+        self._dirty = True
+
+    def _upload(self) -> None:
+        if not self._dirty:
+            return
+        self._dirty = False
+        img = self.text_rgba
+        if img is None:
+            return
+        h, w = img.shape[:2]
+        if self._text_tex is None or self._text_tex.size != (w, h):
+            if self._text_tex is not None:
+                self._text_tex.release()
+            self._text_tex = self.ctx.texture((w, h), 4)
+            self._text_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._text_tex.write(np.ascontiguousarray(np.flipud(img)).tobytes())
+
+    def execute(self, frame: FrameContext) -> None:
+        self._upload()
+        prog = self.shaders.program("fullscreen.vert.glsl", "overlay.frag.glsl")
+        w, h = frame.targets[0].size
+        x0, y0 = frame.out_origin
+        frame.out.use()
+        frame.out.viewport = (x0, y0, 2 * w, h)
+        ctx = self.ctx
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+        show_text = self.show_text and self._text_tex is not None
+        tw, th = self._text_tex.size if show_text else (0, 0)
+        if show_text:
+            self._text_tex.use(0)
+        prog["u_text"].value = 0
+        prog["u_text_size"].value = (tw, th)
+        prog["u_view_size"].value = (2 * w, h)
+        prog["u_origin"].value = (x0, y0)
+        gu, gv = frame.gaze
+        prog["u_gaze"].value = (gu, gv)
+        prog["u_gaze_fixed"].value = int(frame.gaze_fixed)
+        prog["u_show_text"].value = int(show_text)
+        rects = []
+        if show_text:
+            rects.append((x0, y0 + h - th, tw, th))
+        r = self.MARKER
+        for e in (0, 1):
+            cx = x0 + int((e + gu) * w)
+            cy = y0 + int((1.0 - gv) * h)
+            rects.append((cx - r, cy - r, 2 * r, 2 * r))
+        for rect in rects:
+            ctx.scissor = rect
+            self.fullscreen(prog)
+        ctx.scissor = None
+        ctx.disable(moderngl.BLEND)
+
+    def release(self) -> None:
+        super().release()
+        if self._text_tex is not None:
+            self._text_tex.release()
+
+
+def _release_query(query: moderngl.Query) -> None:
+    # moderngl 5.x exposes no Query.release(); its glo is freed with the context.
+    release = getattr(query, "release", None) or getattr(query.mglo, "release", None)
+    if release is not None:
+        release()

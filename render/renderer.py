@@ -1,0 +1,136 @@
+"""The one renderer, driven by the Qt widget and by the headless EGL host alike.
+
+A frame is the list of passes below; which run is decided by the settings tree
+(``render.path``, ``render.lighting``, ``render.overlay``). The host supplies the output
+framebuffer (the widget's default FBO, or an offscreen texture) and the frame's inputs.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import moderngl
+import numpy as np
+
+from app.frame import FrameInput
+from app.scene import Scene
+from app.settings import Settings
+from render.gpu_scene import GpuScene
+from render.passes import (
+    EyeTargets,
+    ForwardPass,
+    FrameContext,
+    GBufferPass,
+    LightingPass,
+    OverlayPass,
+    PresentPass,
+    RenderPass,
+)
+from render.shaders import ShaderLibrary
+
+log = logging.getLogger(__name__)
+
+
+class Renderer:
+    def __init__(self, ctx: moderngl.Context, settings: Settings) -> None:
+        self.ctx = ctx
+        self.settings = settings
+        self.shaders = ShaderLibrary(ctx)
+        self.gbuffer = GBufferPass(ctx, self.shaders)
+        self.lighting = LightingPass(ctx, self.shaders)
+        self.forward = ForwardPass(ctx, self.shaders)
+        self.present = PresentPass(ctx, self.shaders)
+        self.overlay = OverlayPass(ctx, self.shaders)
+        self.passes: list[RenderPass] = [self.gbuffer, self.lighting, self.forward,
+                                         self.present, self.overlay]
+        self.gpu_scene: GpuScene | None = None
+        self.targets: list[EyeTargets] = []
+        self.frames = 0
+        self._errors_logged: set[str] = set()
+        self._empty = GpuScene(ctx, Scene("empty", [], []))
+
+    # -- scene and targets ---------------------------------------------------------------------
+    def set_scene(self, scene: Scene | None) -> None:
+        if self.gpu_scene is not None:
+            self.gpu_scene.release()
+            self.gpu_scene = None
+        if scene is not None:
+            self.gpu_scene = GpuScene(self.ctx, scene)
+            self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Compile every shader variant now, so the first frames do not stall."""
+        for fragment in ("gbuffer.frag.glsl", "forward.frag.glsl"):
+            for textured in (False, True):
+                self.shaders.program("geometry.vert.glsl", fragment, {"HAS_TEXTURE": textured})
+        self.shaders.compute("lighting.comp.glsl")
+        for fragment in ("lighting.frag.glsl", "present.frag.glsl", "overlay.frag.glsl"):
+            self.shaders.program("fullscreen.vert.glsl", fragment)
+
+    def _ensure_targets(self, width: int, height: int) -> None:
+        if self.targets and self.targets[0].size == (width, height):
+            return
+        for t in self.targets:
+            t.release()
+        self.targets = [EyeTargets(self.ctx, width, height) for _ in range(2)]
+
+    # -- the frame -----------------------------------------------------------------------------
+    def render(self, frame: FrameInput, out: moderngl.Framebuffer,
+               origin: tuple[int, int] = (0, 0)) -> None:
+        r = self.settings.render
+        eye = frame.eyes[0]
+        self._ensure_targets(eye.width, eye.height)
+        deferred = r.path == "deferred"
+        self.gbuffer.enabled = self.lighting.enabled = deferred
+        self.forward.enabled = not deferred
+        self.lighting.stage = r.lighting
+        self.overlay.enabled = True
+        self.overlay.show_text = r.overlay
+        ctx = FrameContext(
+            eyes=frame.eyes, targets=self.targets, scene=self.gpu_scene or self._empty,
+            light_scale=r.brightness, ambient=r.ambient, exposure=r.exposure, out=out,
+            out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed)
+        for p in self.passes:
+            try:
+                p.run(ctx)
+            except Exception as exc:  # noqa: BLE001 - one bad pass must not kill the app
+                self._log_once(p.name, exc)
+        self.frames += 1
+
+    def _log_once(self, name: str, exc: Exception) -> None:
+        key = f"{name}: {type(exc).__name__}: {exc}"
+        if key not in self._errors_logged:
+            self._errors_logged.add(key)
+            log.error("render pass %s failed: %s", name, exc, exc_info=exc)
+
+    @property
+    def errors(self) -> list[str]:
+        return sorted(self._errors_logged)
+
+    # -- statistics ----------------------------------------------------------------------------
+    def pass_ms(self) -> dict[str, float]:
+        return {p.name: p.last_ms for p in self.passes if p.enabled}
+
+    def shaded_samples(self) -> int:
+        """Lighting evaluations last frame: deferred pixels lit, or forward fragments shaded."""
+        stage = self.lighting if self.lighting.enabled else self.forward
+        return int(stage.samples)
+
+    def texture_resident_bytes(self) -> int:
+        return self.gpu_scene.texture_bytes if self.gpu_scene is not None else 0
+
+    def read_hdr(self, eye: int) -> np.ndarray:
+        """One eye's linear HDR colour as (H, W, 4) float32, row 0 at the top."""
+        tex = self.targets[eye].color
+        data = np.frombuffer(tex.read(), np.float16).reshape(tex.size[1], tex.size[0], 4)
+        return np.flipud(data.astype(np.float32))
+
+    def release(self) -> None:
+        for p in self.passes:
+            p.release()
+        for t in self.targets:
+            t.release()
+        if self.gpu_scene is not None:
+            self.gpu_scene.release()
+        self._empty.release()
+        self.shaders.release()

@@ -1,0 +1,23 @@
+// Reads one G-buffer texel and lights it; used by the compute and the fragment lighting stages.
+#include "shading.glsl"
+
+uniform sampler2D u_gb_albedo;
+uniform sampler2D u_gb_normal;
+uniform sampler2D u_gb_depth;
+uniform mat4 u_inv_view_projection;
+uniform vec3 u_eye;
+uniform ivec2 u_size;
+uniform vec3 u_background;
+
+vec3 light_texel(ivec2 p) {
+    float depth = texelFetch(u_gb_depth, p, 0).r;
+    if (depth >= 1.0) return u_background;
+    vec4 albedo = texelFetch(u_gb_albedo, p, 0);
+    vec4 normal = texelFetch(u_gb_normal, p, 0);
+    vec2 ndc = (vec2(p) + 0.5) / vec2(u_size) * 2.0 - 1.0;
+    vec4 world = u_inv_view_projection * vec4(ndc, depth * 2.0 - 1.0, 1.0);
+    vec3 P = world.xyz / world.w;
+    vec3 V = safe_normalize(u_eye - P, vec3(0.0, 0.0, 1.0));
+    vec3 N = safe_normalize(normal.xyz, vec3(0.0, 1.0, 0.0));
+    return shade(P, N, V, albedo.rgb, normal.w, albedo.a);
+}

@@ -1,0 +1,14 @@
+#version 430
+// The papers' "no mitigation" baseline: every fragment lit in the fragment shader.
+#include "material.glsl"
+#include "shading.glsl"
+
+uniform vec3 u_eye;
+
+layout(location = 0) out vec4 out_color;
+
+void main() {
+    vec3 V = safe_normalize(u_eye - v_world, vec3(0.0, 0.0, 1.0));
+    out_color = vec4(shade(v_world, surface_normal(), V, surface_albedo(), u_roughness, u_metallic),
+                     1.0);
+}

@@ -1,0 +1,21 @@
+#version 430
+// Vertex stage shared by the G-buffer and the forward path.
+layout(location = 0) in vec3 in_position;
+layout(location = 1) in vec3 in_normal;
+layout(location = 2) in vec2 in_uv;
+layout(location = 3) in vec3 in_color;
+
+uniform mat4 u_view_projection;
+
+out vec3 v_world;
+out vec3 v_normal;
+out vec2 v_uv;
+out vec3 v_color;
+
+void main() {
+    v_world = in_position;
+    v_normal = in_normal;
+    v_uv = in_uv;
+    v_color = in_color;
+    gl_Position = u_view_projection * vec4(in_position, 1.0);
+}
