@@ -29,6 +29,8 @@ class Session:
         self.caster: RayCaster | None = None
         self.path: CameraPath | None = None
         self.time = 0.0
+        self.viewpoint_speed = 0.0  # m/s plus turning (deg/s scaled), from the last step
+        self._last_pose: tuple[float, float, float, float, float] | None = None
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
         self.scene = scene
@@ -53,7 +55,28 @@ class Session:
         self.gaze.set_cursor(*key.gaze)
         self.gaze.button_held = key.gaze_fixed
         self.gaze.update(dt, self.settings.stereo.fov_deg)
+        self.observe_motion(dt)
         self.time = key.t
+
+    def observe_motion(self, dt: float) -> None:
+        """Viewpoint speed since the last call: metres per second plus turning at 1 m per 30 deg."""
+        w = self.walker
+        pose = (*(float(v) for v in w.position), w.yaw_deg, w.pitch_deg)
+        if self._last_pose is not None and dt > 0:
+            a = self._last_pose
+            moved = math.dist(a[:3], pose[:3])
+            turned = abs((pose[3] - a[3] + 180.0) % 360.0 - 180.0) + abs(pose[4] - a[4])
+            self.viewpoint_speed = (moved + turned / 30.0) / dt
+        self._last_pose = pose  # type: ignore[assignment]
+
+    @property
+    def viewpoint_moving(self) -> bool:
+        return self.viewpoint_speed > 0.05
+
+    @property
+    def state(self) -> int:
+        """The TCR paper's state: 0 still/moving gaze, 1 moving/moving, 2 still/fixed, 3 both."""
+        return int(self.viewpoint_moving) + 2 * int(self.gaze.state.fixed)
 
     def current_key(self) -> PathKey:
         """The present pose and gaze as a path key (for recording)."""

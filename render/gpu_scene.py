@@ -28,7 +28,7 @@ class GpuMesh:
 
 
 class GpuScene:
-    def __init__(self, ctx: moderngl.Context, scene: Scene, anisotropy: float = 4.0) -> None:
+    def __init__(self, ctx: moderngl.Context, scene: Scene, anisotropy: float = 1.0) -> None:
         self.ctx = ctx
         self.scene = scene
         self.textures: list[moderngl.Texture] = []

@@ -55,7 +55,7 @@ class Renderer:
             self.gpu_scene.release()
             self.gpu_scene = None
         if scene is not None:
-            self.gpu_scene = GpuScene(self.ctx, scene)
+            self.gpu_scene = GpuScene(self.ctx, scene, self.settings.render.anisotropy)
             self._warm_up()
 
     def _warm_up(self) -> None:

@@ -1,0 +1,80 @@
+"""Shared fixtures: the headless host, reference-image comparison, deterministic settings."""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+REFERENCES = Path(__file__).parent / "references"
+FAILURES = Path(__file__).parent / "_failures"
+SCENES = Path(os.environ.get("VRPREVIEW_SCENES",
+                             Path(__file__).resolve().parents[2] / "shared" / "scenes"))
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--regen-references", action="store_true",
+                     help="rewrite tests/references/*.png from the current renderer")
+
+
+@pytest.fixture(autouse=True)
+def _data_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """User files (screenshots, viewpoints, recordings) of a test go to its tmp folder."""
+    monkeypatch.setenv("VRPREVIEW_DATA", str(tmp_path / "data"))
+
+
+@pytest.fixture(autouse=True)
+def _no_logged_errors(caplog: pytest.LogCaptureFixture):
+    """A test fails if anything logged an error (a render pass failing, say)."""
+    caplog.set_level(logging.WARNING)
+    yield
+    errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR
+              and not getattr(r, "expected", False)]
+    assert not errors, "errors were logged: " + "; ".join(r.getMessage() for r in errors)
+
+
+@pytest.fixture
+def compare_reference(request: pytest.FixtureRequest):
+    """compare(name, image, max_mean, max_pixel_fraction): against tests/references/name.png.
+
+    The tolerance is explicit per call: ``max_mean`` is the mean absolute difference (0-255) and
+    ``max_frac`` the fraction of pixels allowed to differ by more than 16 levels. On a failure the
+    actual image and a difference image go to tests/_failures/.
+    """
+    regen = request.config.getoption("--regen-references")
+
+    def compare(name: str, image: np.ndarray, max_mean: float = 1.0,
+                max_frac: float = 0.002) -> None:
+        ref_path = REFERENCES / f"{name}.png"
+        if regen or not ref_path.exists():
+            if not regen:
+                pytest.fail(f"no reference {ref_path}; run pytest --regen-references")
+            REFERENCES.mkdir(exist_ok=True)
+            Image.fromarray(image).save(ref_path)
+            return
+        ref = np.asarray(Image.open(ref_path).convert("RGB"))
+        assert ref.shape == image.shape, f"{name}: size {image.shape} != reference {ref.shape}"
+        diff = np.abs(ref.astype(np.int16) - image.astype(np.int16))
+        mean = float(diff.mean())
+        frac = float((diff.max(axis=2) > 16).mean())
+        if mean > max_mean or frac > max_frac:
+            FAILURES.mkdir(exist_ok=True)
+            Image.fromarray(image).save(FAILURES / f"{name}.actual.png")
+            Image.fromarray(np.clip(diff * 4, 0, 255).astype(np.uint8)).save(
+                FAILURES / f"{name}.diff.png")
+            pytest.fail(f"{name}: mean diff {mean:.2f} (max {max_mean}), {frac:.4f} of pixels "
+                        f"off by >16 (max {max_frac}); see {FAILURES}")
+
+    return compare
+
+
+@pytest.fixture(scope="session")
+def scenes_dir() -> Path:
+    if not SCENES.is_dir():
+        pytest.fail(f"third-party test scenes not found at {SCENES} (expected ../shared/scenes "
+                    "beside the checkout, or set VRPREVIEW_SCENES)")
+    return SCENES
