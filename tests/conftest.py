@@ -16,6 +16,15 @@ SCENES = Path(os.environ.get("VRPREVIEW_SCENES",
                              Path(__file__).resolve().parents[2] / "shared" / "scenes"))
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    # The Qt window needs a 4.3 core context; the format must be set before QApplication exists.
+    from PyQt6.QtGui import QSurfaceFormat
+
+    from ui.gl_view import default_format
+
+    QSurfaceFormat.setDefaultFormat(default_format())
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--regen-references", action="store_true",
                      help="rewrite tests/references/*.png from the current renderer")

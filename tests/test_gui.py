@@ -1,0 +1,132 @@
+"""The real window under a virtual X server, driven with pytest-qt; we look at its pixels."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PyQt6.QtCore import QPoint, QPointF, Qt
+from PyQt6.QtGui import QImage, QMouseEvent
+from PyQt6.QtWidgets import QApplication, QMessageBox
+
+from app.settings import Settings
+from render.offscreen import OffscreenHost
+from tests.test_render import checker_scene
+from ui.main_window import MainWindow
+
+VIEW_W, VIEW_H = 480, 270
+
+
+def qimage_to_array(img: QImage) -> np.ndarray:
+    img = img.convertToFormat(QImage.Format.Format_RGB888)
+    ptr = img.constBits()
+    ptr.setsize(img.sizeInBytes())
+    rows = np.frombuffer(ptr, np.uint8).reshape(img.height(), img.bytesPerLine())
+    return rows[:, : img.width() * 3].reshape(img.height(), img.width(), 3).copy()
+
+
+@pytest.fixture
+def window(qtbot):
+    settings = Settings()
+    settings.render.overlay = False  # fps text changes every run; the picture must not
+    w = MainWindow(settings, checker_scene())
+    qtbot.addWidget(w)
+    w.view.setFixedSize(VIEW_W, VIEW_H)
+    w.show()
+    qtbot.waitExposed(w)
+    qtbot.waitUntil(lambda: w.view.renderer is not None, timeout=10000)
+    yield w
+    w.close()
+
+
+def grab(w: MainWindow) -> np.ndarray:
+    return qimage_to_array(w.view.grabFramebuffer())
+
+
+def send_mouse(view, kind, pos: QPoint, button=Qt.MouseButton.NoButton):
+    buttons = button if kind != QMouseEvent.Type.MouseButtonRelease else Qt.MouseButton.NoButton
+    p = QPointF(pos)
+    ev = QMouseEvent(kind, p, view.mapToGlobal(p), button, buttons,
+                     Qt.KeyboardModifier.NoModifier)
+    QApplication.sendEvent(view, ev)
+
+
+def test_window_shows_the_same_picture_as_the_headless_host(window, compare_reference):
+    shot = grab(window)
+    assert shot.shape == (VIEW_H, VIEW_W, 3)
+    ratio = window.view.devicePixelRatioF()
+    host = OffscreenHost(int(VIEW_W * ratio), int(VIEW_H * ratio), window.settings)
+    try:
+        host.set_scene(window.session.scene)
+        host.set_text_image(None)
+        headless = host.draw(window.session.frame_input(*host.eye_size))
+    finally:
+        host.close()
+    # One renderer, two hosts: the same frame must give the same pixels.
+    assert np.abs(shot.astype(int) - headless.astype(int)).mean() < 0.5
+    compare_reference("gui_checker_480x270", shot, max_mean=1.0, max_frac=0.003)
+
+
+def test_tab_toggles_evaluation_and_normal_mode(window, qtbot):
+    assert not window.normal_mode and window.dock.isVisible()
+    assert window.statusBar().isVisible()
+    qtbot.keyClick(window.view, Qt.Key.Key_Tab)
+    assert window.normal_mode
+    assert not window.dock.isVisible() and not window.statusBar().isVisible()
+    assert not window.menuBar().isVisible()
+    qtbot.keyClick(window.view, Qt.Key.Key_Tab)
+    assert not window.normal_mode and window.dock.isVisible()
+
+
+def test_cursor_is_the_gaze_and_a_held_button_fixes_it(window, qtbot):
+    view = window.view
+    gaze = window.session.gaze
+    # The right eye's viewport: the same normalised point as in the left eye.
+    pos = QPoint(VIEW_W // 2 + VIEW_W // 8, VIEW_H // 4)
+    send_mouse(view, QMouseEvent.Type.MouseMove, pos)
+    assert gaze.state.u == pytest.approx(0.25, abs=0.01)
+    assert gaze.state.v == pytest.approx(0.25, abs=0.01)
+    assert not gaze.state.fixed
+    send_mouse(view, QMouseEvent.Type.MouseButtonPress, pos, Qt.MouseButton.LeftButton)
+    assert gaze.state.fixed and window.session.state in (2, 3)
+    shot = grab(window)
+    # The fixed-gaze marker (filled orange disc) is drawn at the cursor in both eyes.
+    for x in (VIEW_W // 8, VIEW_W // 2 + VIEW_W // 8):
+        r, g, b = shot[VIEW_H // 4, x].astype(int)
+        assert r > 200 and 60 < g < 150 and b < 80, (x, r, g, b)
+    send_mouse(view, QMouseEvent.Type.MouseButtonRelease, pos, Qt.MouseButton.LeftButton)
+    assert not gaze.state.fixed
+
+
+def test_bad_file_gives_an_error_dialog_and_the_scene_stays(window, tmp_path, monkeypatch):
+    shown = []
+    monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: shown.append(a))
+    bad = tmp_path / "broken.glb"
+    bad.write_bytes(b"glTF\x02\x00\x00\x00garbage" * 10)
+    before = window.session.scene
+    window.load(str(bad))
+    window.wait_for_load()
+    assert len(shown) == 1 and "broken.glb" in shown[0][2]
+    assert window.session.scene is before
+    assert grab(window).max() > 100  # still rendering
+
+
+def test_open_a_model_file_replaces_the_scene(window, scenes_dir):
+    window.load(str(scenes_dir / "gltf-samples" / "Duck" / "glTF-Binary" / "Duck.glb"))
+    window.wait_for_load()
+    assert window.session.scene.name == "Duck"
+    assert "Duck" in window.windowTitle()
+    shot = grab(window)
+    assert shot.std() > 10  # a model is visible, not a flat background
+
+
+def test_screenshot_and_viewpoint_are_saved(window, tmp_path):
+    path = window.save_screenshot()
+    assert path is not None and path.exists()
+    img = QImage(str(path))
+    assert (img.width(), img.height()) == (VIEW_W, VIEW_H)
+    window.save_viewpoint("by the quad")
+    window.session.walker.place((5.0, 1.6, 5.0), 45.0)
+    vp_actions = [a for a in window.viewpoint_menu.actions() if a.text() == "by the quad"]
+    assert vp_actions
+    vp_actions[0].trigger()
+    np.testing.assert_allclose(window.session.walker.position, [0.0, 1.6, 0.0], atol=1e-9)

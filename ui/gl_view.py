@@ -1,0 +1,187 @@
+"""The stereo view: a thin QOpenGLWidget that forwards to the shared renderer.
+
+initializeGL/resizeGL/paintGL hand over to ``render.Renderer``; the widget only turns Qt input
+into session state (keys -> walking, cursor -> gaze, right-drag -> looking) and draws into
+``defaultFramebufferObject()`` at the device pixel ratio.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import moderngl
+from PyQt6.QtCore import QPointF, Qt, QTimer, pyqtSignal
+from PyQt6.QtGui import QKeyEvent, QMouseEvent, QSurfaceFormat
+from PyQt6.QtOpenGLWidgets import QOpenGLWidget
+
+from app.overlay_text import text_image
+from app.scene import Scene
+from app.session import Session
+from app.stats import FrameTimer, overlay_lines
+from render.context import GLUnavailableError, check
+from render.renderer import Renderer
+
+log = logging.getLogger(__name__)
+
+MOVE_KEYS = {
+    Qt.Key.Key_W: (1, 0, 0), Qt.Key.Key_Up: (1, 0, 0),
+    Qt.Key.Key_S: (-1, 0, 0), Qt.Key.Key_Down: (-1, 0, 0),
+    Qt.Key.Key_A: (0, -1, 0), Qt.Key.Key_D: (0, 1, 0),
+    Qt.Key.Key_E: (0, 0, 1), Qt.Key.Key_Q: (0, 0, -1),
+}
+TURN_KEYS = {Qt.Key.Key_Left: 1.0, Qt.Key.Key_Right: -1.0}
+TURN_DEG_S = 60.0
+
+
+def default_format() -> QSurfaceFormat:
+    fmt = QSurfaceFormat()
+    fmt.setVersion(4, 3)
+    fmt.setProfile(QSurfaceFormat.OpenGLContextProfile.CoreProfile)
+    fmt.setDepthBufferSize(24)
+    fmt.setSwapInterval(0)  # measure the renderer, not the display's refresh
+    return fmt
+
+
+class StereoView(QOpenGLWidget):
+    gl_failed = pyqtSignal(str)
+
+    def __init__(self, session: Session, parent=None) -> None:
+        super().__init__(parent)
+        self.session = session
+        self.renderer: Renderer | None = None
+        self.ctx: moderngl.Context | None = None
+        self.timer = FrameTimer()
+        self._pending_scene: Scene | None = session.scene
+        self._keys: set[int] = set()
+        self._last_tick = time.perf_counter()
+        self._drag_from: QPointF | None = None
+        self._text_at = 0.0
+        self.playing = False
+        self._play_frame = 0
+        self.recording: list = []
+        self.is_recording = False
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+        self.setMouseTracking(True)
+        self.setMinimumSize(320, 180)
+        self._tick = QTimer(self)
+        self._tick.timeout.connect(self._advance)
+        self._tick.start(0)
+
+    # -- GL forwarding -------------------------------------------------------------------------
+    def initializeGL(self) -> None:
+        try:
+            self.ctx = check(moderngl.create_context())
+            self.renderer = Renderer(self.ctx, self.session.settings)
+        except (GLUnavailableError, moderngl.Error, Exception) as exc:  # noqa: BLE001
+            log.error("OpenGL unavailable: %s", exc)
+            self.renderer = None
+            self.gl_failed.emit(str(exc))
+            return
+        if self._pending_scene is not None:
+            self.renderer.set_scene(self._pending_scene)
+            self._pending_scene = None
+
+    def paintGL(self) -> None:
+        if self.renderer is None or self.ctx is None:
+            return
+        if self._pending_scene is not None:
+            self.renderer.set_scene(self._pending_scene)
+            self._pending_scene = None
+        ratio = self.devicePixelRatioF()
+        w, h = max(2, int(self.width() * ratio)), max(1, int(self.height() * ratio))
+        fbo = self.ctx.detect_framebuffer(self.defaultFramebufferObject())
+        fbo.viewport = (0, 0, w, h)
+        fbo.clear(0.0, 0.0, 0.0, 1.0)
+        frame = self.session.frame_input(w // 2, h)
+        now = time.perf_counter()
+        if now - self._text_at > 0.25:  # redraw the statistics text at 4 Hz, not every frame
+            self._text_at = now
+            lines = overlay_lines(self.timer.fps, self.renderer.pass_ms(), self.session.settings,
+                                  frame.gaze_fixed)
+            self.renderer.overlay.set_text_image(text_image(lines))
+        self.renderer.render(frame, fbo)
+        self.timer.tick(now)
+
+    def set_scene(self, scene: Scene) -> None:
+        """Swap the scene; the GPU upload happens in the next paintGL (context current)."""
+        self._pending_scene = scene
+        self._play_frame = 0
+        self.update()
+
+    def release_gl(self) -> None:
+        if self.renderer is not None:
+            self.makeCurrent()
+            self.renderer.release()
+            self.renderer = None
+            self.doneCurrent()
+
+    # -- input -> session ----------------------------------------------------------------------
+    def _advance(self) -> None:
+        now = time.perf_counter()
+        dt = min(0.1, now - self._last_tick)
+        self._last_tick = now
+        s = self.session
+        if self.playing and s.path is not None:
+            s.apply_path_frame(self._play_frame)
+            self._play_frame = (self._play_frame + max(1, round(dt * 60))) % s.path.frame_count()
+        else:
+            fwd = sum(MOVE_KEYS[k][0] for k in self._keys if k in MOVE_KEYS)
+            strafe = sum(MOVE_KEYS[k][1] for k in self._keys if k in MOVE_KEYS)
+            rise = sum(MOVE_KEYS[k][2] for k in self._keys if k in MOVE_KEYS)
+            turn = sum(TURN_KEYS[k] for k in self._keys if k in TURN_KEYS)
+            if turn:
+                s.walker.yaw_deg = (s.walker.yaw_deg + turn * TURN_DEG_S * dt) % 360.0
+            if fwd or strafe or rise:
+                s.walker.step(fwd, strafe, rise, dt)
+            s.gaze.update(dt, s.settings.stereo.fov_deg)
+            s.observe_motion(dt)
+            s.time += dt
+        if self.is_recording:
+            self.recording.append(s.current_key())
+        self.update()
+
+    def keyPressEvent(self, event: QKeyEvent) -> None:
+        if event.key() in MOVE_KEYS or event.key() in TURN_KEYS:
+            if not event.isAutoRepeat():
+                self._keys.add(event.key())
+            return
+        super().keyPressEvent(event)
+
+    def keyReleaseEvent(self, event: QKeyEvent) -> None:
+        if not event.isAutoRepeat():
+            self._keys.discard(event.key())
+        super().keyReleaseEvent(event)
+
+    def focusOutEvent(self, event) -> None:
+        self._keys.clear()  # a key released while another widget had focus must not stick
+        super().focusOutEvent(event)
+
+    def _set_gaze_from(self, pos: QPointF) -> None:
+        u, v = self.session.gaze.from_view_pixel(pos.x(), pos.y(), self.width(), self.height())
+        self.session.gaze.set_cursor(u, v)
+
+    def mouseMoveEvent(self, event: QMouseEvent) -> None:
+        pos = event.position()
+        if self._drag_from is not None:
+            d = pos - self._drag_from
+            self._drag_from = pos
+            self.session.walker.look(d.x(), d.y())
+        else:
+            self._set_gaze_from(pos)
+
+    def mousePressEvent(self, event: QMouseEvent) -> None:
+        self.setFocus()
+        if event.button() == Qt.MouseButton.LeftButton:
+            self._set_gaze_from(event.position())
+            self.session.gaze.button_held = True
+            self.session.gaze.update(0.0, self.session.settings.stereo.fov_deg)
+        elif event.button() in (Qt.MouseButton.RightButton, Qt.MouseButton.MiddleButton):
+            self._drag_from = event.position()
+
+    def mouseReleaseEvent(self, event: QMouseEvent) -> None:
+        if event.button() == Qt.MouseButton.LeftButton:
+            self.session.gaze.button_held = False
+            self.session.gaze.update(0.0, self.session.settings.stereo.fov_deg)
+        elif event.button() in (Qt.MouseButton.RightButton, Qt.MouseButton.MiddleButton):
+            self._drag_from = None

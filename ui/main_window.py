@@ -1,0 +1,366 @@
+"""Main window: the stereo view, panels, the evaluation bar, files, screenshots, viewpoints.
+
+Evaluation mode shows panels and the evaluation bar; normal mode shows only the scene (Tab
+toggles). Loading a scene runs on a worker thread behind a progress dialog; a file that cannot
+be loaded gives an error dialog and the current scene stays.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import json
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+from PyQt6.QtCore import QBuffer, QEvent, QIODevice, QObject, Qt, QTimer
+from PyQt6.QtGui import QAction, QKeySequence, QSurfaceFormat
+from PyQt6.QtWidgets import (
+    QApplication,
+    QDockWidget,
+    QFileDialog,
+    QInputDialog,
+    QMainWindow,
+    QMessageBox,
+    QProgressDialog,
+    QTabWidget,
+    QWidget,
+)
+
+from app import scenes
+from app.fileio import atomic_write_bytes, atomic_write_json
+from app.loaders import SUPPORTED_EXTENSIONS, SceneLoadError
+from app.paths import CameraPath
+from app.scene import Scene, Viewpoint
+from app.session import Session
+from app.settings import Settings, SettingsError
+from ui.gl_view import StereoView, default_format
+from ui.panels import EvaluationBar, SettingsPanel
+
+log = logging.getLogger(__name__)
+
+
+def data_dir() -> Path:
+    """Where screenshots, viewpoints and recordings go (VRPREVIEW_DATA overrides)."""
+    base = os.environ.get("VRPREVIEW_DATA") or Path.home() / ".local" / "share" / "vrpreview"
+    return Path(base)
+
+
+class MainWindow(QMainWindow):
+    def __init__(self, settings: Settings | None = None, scene: Scene | None = None,
+                 path: CameraPath | None = None) -> None:
+        super().__init__()
+        self.settings = settings or Settings()
+        self.session = Session(self.settings)
+        if scene is not None:
+            self.session.set_scene(scene, path)
+        self.setWindowTitle("VR Preview")
+        self.view = StereoView(self.session)
+        self.view.gl_failed.connect(self._gl_failed)
+        self.setCentralWidget(self.view)
+        self.setAcceptDrops(True)
+        self._loader = concurrent.futures.ThreadPoolExecutor(max_workers=1)
+        self._load_poll = QTimer(self)
+        self._load_poll.timeout.connect(self._check_load)
+        self._loading: tuple[concurrent.futures.Future, str, QProgressDialog] | None = None
+        self.normal_mode = False
+
+        self.panel = SettingsPanel(self.settings, ("stereo", "render", "navigation", "gaze"))
+        tabs = QTabWidget()
+        tabs.addTab(self.panel, "Settings")
+        self.dock = QDockWidget("Evaluation", self)
+        self.dock.setObjectName("evaluation-panels")
+        self.dock.setWidget(tabs)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, self.dock)
+        self.eval_bar = EvaluationBar(self._poll)
+        self.statusBar().addPermanentWidget(self.eval_bar, 1)
+        self._build_menus()
+        self._update_title()
+        QApplication.instance().installEventFilter(self)
+
+    # -- menus ---------------------------------------------------------------------------------
+    def _build_menus(self) -> None:
+        def action(menu, text: str, slot, shortcut: str | None = None) -> QAction:
+            a = QAction(text, self)
+            if shortcut:
+                a.setShortcut(QKeySequence(shortcut))
+            a.triggered.connect(slot)
+            menu.addAction(a)
+            self.addAction(a)  # shortcuts keep working while the menu bar is hidden
+            return a
+
+        bar = self.menuBar()
+        f = bar.addMenu("&File")
+        action(f, "&Open scene…", self.open_dialog, "Ctrl+O")
+        built_in = f.addMenu("Built-in scenes")
+        for name in scenes.BUILTIN:
+            action(built_in, name, lambda _=False, n=name: self.load(n))
+        f.addSeparator()
+        action(f, "Save &screenshot", self.save_screenshot, "F12")
+        action(f, "Save settings preset…", self.save_preset)
+        action(f, "Load settings preset…", self.load_preset)
+        f.addSeparator()
+        action(f, "&Quit", self.close, "Ctrl+Q")
+        v = bar.addMenu("&View")
+        self.mode_action = action(v, "Normal mode (scene only)\tTab", self.toggle_mode)
+        action(v, "Play walkthrough", self.toggle_play, "P")
+        action(v, "Record path", self.toggle_recording, "Ctrl+R")
+        self.viewpoint_menu = bar.addMenu("View&points")
+        action(self.viewpoint_menu, "Save viewpoint…", self.save_viewpoint, "Ctrl+B")
+        self.viewpoint_menu.addSeparator()
+        self._refresh_viewpoints()
+        h = bar.addMenu("&Help")
+        action(h, "Controls", self.show_controls, "F1")
+
+    def show_controls(self) -> None:
+        QMessageBox.information(self, "Controls", (
+            "W/S or Up/Down: walk   A/D: step sideways   Left/Right: turn\n"
+            "Right- or middle-drag: look around\n"
+            "Cursor: gaze point (both eyes)   Hold left button: gaze fixed\n"
+            "Tab: evaluation / normal mode   P: play walkthrough   Ctrl+R: record path\n"
+            "F12: screenshot   Ctrl+B: save viewpoint   Ctrl+O: open a model"))
+
+    # -- modes ---------------------------------------------------------------------------------
+    def eventFilter(self, obj: QObject, event: QEvent) -> bool:
+        if (event.type() == QEvent.Type.KeyPress and event.key() == Qt.Key.Key_Tab
+                and isinstance(obj, QWidget) and obj.window() is self):
+            self.toggle_mode()
+            return True
+        return super().eventFilter(obj, event)
+
+    def toggle_mode(self) -> None:
+        self.set_normal_mode(not self.normal_mode)
+
+    def set_normal_mode(self, normal: bool) -> None:
+        self.normal_mode = normal
+        for w in (self.dock, self.statusBar(), self.menuBar()):
+            w.setVisible(not normal)
+        self.view.session.settings.render.overlay = not normal
+        self.view.setFocus()
+
+    # -- scenes --------------------------------------------------------------------------------
+    def open_dialog(self) -> None:
+        patterns = " ".join(f"*{e}" for e in SUPPORTED_EXTENSIONS)
+        path, _ = QFileDialog.getOpenFileName(self, "Open scene", "",
+                                              f"Scenes ({patterns});;All files (*)")
+        if path:
+            self.load(path)
+
+    def load(self, name_or_path: str) -> None:
+        """Load on a worker thread; the progress dialog stays until it is done."""
+        if self._loading is not None:
+            return
+        dialog = QProgressDialog(f"Loading {Path(name_or_path).name}…", None, 0, 0, self)
+        dialog.setWindowTitle("Loading scene")
+        dialog.setWindowModality(Qt.WindowModality.WindowModal)
+        dialog.setMinimumDuration(300)
+        future = self._loader.submit(_load_with_session, name_or_path, self.settings)
+        self._loading = (future, name_or_path, dialog)
+        self._load_poll.start(30)
+
+    def wait_for_load(self, timeout: float = 60.0) -> None:
+        """Block (processing events) until the current load finished (tests and scripts)."""
+        end = time.monotonic() + timeout
+        while self._loading is not None and time.monotonic() < end:
+            QApplication.processEvents()
+            time.sleep(0.01)
+        QApplication.processEvents()
+
+    def _check_load(self) -> None:
+        if self._loading is None or not self._loading[0].done():
+            return
+        future, name, dialog = self._loading
+        self._loading = None
+        self._load_poll.stop()
+        dialog.reset()
+        dialog.deleteLater()
+        try:
+            scene, session_path = future.result()
+        except (SceneLoadError, OSError, ValueError) as exc:
+            self.show_error("Cannot open scene", str(exc))
+            return
+        except Exception as exc:  # noqa: BLE001 - any loader bug: report it, keep running
+            log.exception("loading %s failed", name)
+            self.show_error("Cannot open scene", f"{name}: unexpected error: {exc}")
+            return
+        self.session.set_scene(scene, session_path)
+        self.view.set_scene(scene)
+        self._update_title()
+        self._refresh_viewpoints()
+        note = f"Loaded {scene.name}: {scene.triangle_count:,} triangles"
+        if scene.warnings:
+            note += f" ({len(scene.warnings)} warnings; see the log)"
+            for w in scene.warnings:
+                log.warning("%s: %s", scene.name, w)
+        self.statusBar().showMessage(note, 8000)
+
+    def show_error(self, title: str, text: str) -> None:
+        QMessageBox.critical(self, title, text)
+
+    def _gl_failed(self, message: str) -> None:
+        self.show_error("OpenGL 4.3 is not available", message)
+
+    def _update_title(self) -> None:
+        scene = self.session.scene
+        self.setWindowTitle(f"VR Preview — {scene.name}" if scene else "VR Preview")
+
+    def dragEnterEvent(self, event) -> None:
+        urls = event.mimeData().urls()
+        if urls and urls[0].isLocalFile():
+            event.acceptProposedAction()
+
+    def dropEvent(self, event) -> None:
+        urls = event.mimeData().urls()
+        if urls and urls[0].isLocalFile():
+            self.load(urls[0].toLocalFile())
+
+    # -- files ---------------------------------------------------------------------------------
+    def save_screenshot(self) -> Path | None:
+        """PNG of both eyes as shown, into the data folder; the path goes to the status bar."""
+        image = self.view.grabFramebuffer()
+        buf = QBuffer()
+        buf.open(QIODevice.OpenModeFlag.WriteOnly)
+        image.save(buf, "PNG")
+        name = time.strftime("screenshot-%Y%m%d-%H%M%S.png")
+        target = data_dir() / "screenshots" / name
+        try:
+            atomic_write_bytes(target, bytes(buf.data()))
+        except OSError as exc:
+            self.show_error("Cannot save screenshot", str(exc))
+            return None
+        self.statusBar().showMessage(f"Screenshot saved: {target}", 8000)
+        return target
+
+    def save_preset(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Save settings preset",
+                                              str(data_dir() / "preset.json"), "JSON (*.json)")
+        if path:
+            try:
+                self.settings.save(path)
+            except OSError as exc:
+                self.show_error("Cannot save preset", str(exc))
+
+    def load_preset(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Load settings preset", str(data_dir()),
+                                              "JSON (*.json)")
+        if path:
+            self.apply_preset(path)
+
+    def apply_preset(self, path: str) -> None:
+        try:
+            loaded = Settings.load(path)
+        except SettingsError as exc:
+            self.show_error("Cannot load preset", str(exc))
+            return
+        for key in loaded.keys():  # in place: the session, renderer and panels share it
+            self.settings.set(key, loaded.get(key))
+        self.panel.refresh()
+
+    # -- viewpoints and paths ------------------------------------------------------------------
+    def _viewpoints_file(self) -> Path:
+        return data_dir() / "viewpoints.json"
+
+    def _read_viewpoints(self) -> dict:
+        try:
+            doc = json.loads(self._viewpoints_file().read_text(encoding="utf-8"))
+            return doc if isinstance(doc, dict) else {}
+        except (OSError, json.JSONDecodeError):
+            return {}
+
+    def save_viewpoint(self, name: str | None = None) -> None:
+        scene = self.session.scene
+        if scene is None:
+            return
+        all_vp = self._read_viewpoints()
+        mine = all_vp.setdefault(scene.name, {})
+        if not name:
+            name, ok = QInputDialog.getText(self, "Save viewpoint", "Name:",
+                                            text=f"Viewpoint {len(mine) + 1}")
+            if not ok or not name:
+                return
+        w = self.session.walker
+        mine[name] = {"position": [float(v) for v in w.position], "yaw_deg": w.yaw_deg,
+                      "pitch_deg": w.pitch_deg}
+        atomic_write_json(self._viewpoints_file(), all_vp)
+        self._refresh_viewpoints()
+        self.statusBar().showMessage(f"Viewpoint '{name}' saved", 5000)
+
+    def _refresh_viewpoints(self) -> None:
+        menu = self.viewpoint_menu
+        for a in menu.actions()[2:]:
+            menu.removeAction(a)
+        scene = self.session.scene
+        if scene is None:
+            return
+        for name, vp in self._read_viewpoints().get(scene.name, {}).items():
+            a = QAction(name, self)
+            a.triggered.connect(lambda _=False, v=vp: self.go_to(Viewpoint(
+                tuple(v["position"]), v.get("yaw_deg", 0.0), v.get("pitch_deg", 0.0))))
+            menu.addAction(a)
+
+    def go_to(self, vp: Viewpoint) -> None:
+        self.view.playing = False
+        self.session.walker.place(vp.position, vp.yaw_deg, vp.pitch_deg)
+
+    def toggle_play(self) -> None:
+        self.view.playing = not self.view.playing
+
+    def toggle_recording(self) -> None:
+        view = self.view
+        if not view.is_recording:
+            view.recording = []
+            view.is_recording = True
+            self.statusBar().showMessage("Recording path… (Ctrl+R stops)")
+            return
+        view.is_recording = False
+        keys = view.recording
+        if len(keys) < 2:
+            return
+        t0 = keys[0].t
+        for k in keys:
+            k.t -= t0
+        name = time.strftime("path-%Y%m%d-%H%M%S.json")
+        target = data_dir() / "paths" / name
+        scene = self.session.scene
+        CameraPath(keys, scene.name if scene else "").save(target)
+        self.statusBar().showMessage(f"Path saved: {target} (replay: --path {target})", 10000)
+
+    # -- statistics ----------------------------------------------------------------------------
+    def _poll(self) -> dict:
+        s = self.session
+        scene = s.scene
+        return {"state": s.state, "fps": self.view.timer.fps, "gazed": s.gazed_object(),
+                "scene": f"{scene.name} · {scene.triangle_count:,} tris" if scene else ""}
+
+    def closeEvent(self, event) -> None:
+        QApplication.instance().removeEventFilter(self)
+        self.view.release_gl()
+        self._loader.shutdown(wait=False, cancel_futures=True)
+        super().closeEvent(event)
+
+
+def _load_with_session(name: str, settings: Settings) -> tuple[Scene, CameraPath]:
+    scene = scenes.resolve(name)
+    return scene, scenes.default_path(scene)
+
+
+def create_app(argv: list[str] | None = None) -> QApplication:
+    QSurfaceFormat.setDefaultFormat(default_format())
+    app = QApplication.instance() or QApplication(argv or sys.argv[:1])
+    app.setApplicationName("VR Preview")
+    return app  # type: ignore[return-value]
+
+
+def run(scene_name: str, settings: Settings, path: CameraPath | None = None) -> int:
+    app = create_app()
+    window = MainWindow(settings)
+    window.resize(1600, 900)
+    window.show()
+    window.load(scene_name)
+    if path is not None:
+        window.wait_for_load()
+        window.session.path = path
+        window.view.playing = True
+    return app.exec()
