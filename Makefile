@@ -9,7 +9,7 @@ APT_PKGS := libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-re
 	libxcb-xinerama0 libxcb-xkb1 libxcb-shape0 libxcb-randr0 libxkbcommon-x11-0 \
 	libdbus-1-3 libfontconfig1 xvfb xauth libegl1 libgl1 libgl1-mesa-dri libegl-mesa0
 
-.PHONY: run test sysdeps venv lint bench clean
+.PHONY: run test sysdeps venv lint bench clean dist
 
 sysdeps:
 	@if ! command -v dpkg-query >/dev/null; then \
@@ -49,3 +49,6 @@ bench: sysdeps $(STAMP)
 
 clean:
 	rm -rf $(VENV) out build *.egg-info
+
+dist: $(STAMP)
+	$(PY) -m pip wheel --no-deps -w dist .
