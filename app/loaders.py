@@ -55,6 +55,7 @@ _MAX_LAYERS = 12  # surfaces peeled per column: roof, vaults, floors, slabs...
 _RING_DIRECTIONS = 16
 _INSIDE_HIT_FRACTION = 0.75  # "most" horizontal rays must hit something to count as enclosed
 _FRONT_FACING_FRACTION = 0.5  # of those hits, the share that must face the eye
+_MIN_REVERSED_ROOM_M2 = 20.0  # floor area that makes an inside-out enclosure a room
 _LEVEL_BIN_M = 0.35  # floor heights closer than this are one level (thresholds, small steps)
 # A lone object's bounding sphere covers this share of a 90 degree view from the spawn.
 _OBJECT_VIEW_FILL = 0.6
@@ -215,6 +216,9 @@ def _trimesh_load(path: Path) -> Any:
                              "memory.") from exc
     except Exception as exc:  # noqa: BLE001 - parsers raise anything on damaged input
         detail = str(exc).strip() or type(exc).__name__
+        if isinstance(exc, (ImportError, UnicodeDecodeError)):
+            # trimesh reaches for an optional text-encoding detector on undecodable bytes.
+            detail = "its content is not readable text"
         if len(detail) > 200:
             detail = detail[:200] + "..."
         raise SceneLoadError(f"Cannot read '{path.name}': the file is damaged or not a valid "
@@ -249,6 +253,7 @@ class _SceneBuilder:
         self._obj_untextured: dict[str, Any] = {}  # OBJ material name -> material without image
         self._gltf_materials = self._index_gltf_materials()
         self._skipped_kinds: set[str] = set()
+        self._name_uses: dict[str, int] = {}
 
     # ---- geometry ------------------------------------------------------------------------
 
@@ -267,7 +272,12 @@ class _SceneBuilder:
                 continue
             if len(faces) == 0:
                 continue
-            name = str(node) if str(node) == str(geom_name) else f"{node}/{geom_name}"
+            # Geometry names are stable; trimesh's node names for multi-primitive glTF meshes
+            # carry a random suffix, so instances are numbered instead.
+            name = str(geom_name)
+            self._name_uses[name] = self._name_uses.get(name, 0) + 1
+            if self._name_uses[name] > 1:
+                name = f"{name}#{self._name_uses[name]}"
             self.meshes.append(self._mesh(name, geom, np.asarray(matrix, np.float64)))
 
     def _mesh(self, name: str, geom: Any, matrix: np.ndarray) -> Mesh:
@@ -278,9 +288,7 @@ class _SceneBuilder:
         uvs = getattr(visual, "uv", None) if visual is not None else None
         uvs = np.asarray(uvs, np.float64)[:, :2] if uvs is not None and len(uvs) == len(pos) \
             else None
-        colors = self._vertex_colors(geom, visual, len(pos))
-        material = self._material_index(visual, colors is not None)
-
+        colors = self._vertex_colors(visual, len(pos))
         face_colors = self._face_colors(visual, len(idx))
         if face_colors is not None:
             # One colour per face: give each triangle its own three vertices so the colour can
@@ -291,7 +299,7 @@ class _SceneBuilder:
             uvs = uvs[flat] if uvs is not None else None
             colors = np.repeat(face_colors, 3, axis=0)
             idx = np.arange(flat.size, dtype=np.int64).reshape(-1, 3)
-            material = self._material_index(visual, True)
+        material = self._material_index(visual, colors is not None)
 
         rot = matrix[:3, :3]
         pos = pos @ rot.T + matrix[:3, 3]
@@ -310,7 +318,7 @@ class _SceneBuilder:
                     uvs.astype(np.float32), idx.astype(np.uint32), material,
                     None if colors is None else colors.astype(np.float32))
 
-    def _vertex_colors(self, geom: Any, visual: Any, n: int) -> np.ndarray | None:
+    def _vertex_colors(self, visual: Any, n: int) -> np.ndarray | None:
         raw = None
         attrs = getattr(visual, "vertex_attributes", None)
         if attrs is not None and "color" in attrs:
@@ -367,40 +375,39 @@ class _SceneBuilder:
         return Material(str(getattr(mat, "name", None) or "material"))
 
     def _pbr_material(self, mat: Any) -> Material:
+        """glTF factors, taken from the JSON where it has them.
+
+        The JSON keeps full float precision, while trimesh rounds ``baseColorFactor`` to uint8,
+        which crushes dark linear colours. trimesh's values stand in for keys the JSON lacks
+        (it converts KHR_materials_pbrSpecularGlossiness, for one), then glTF's own defaults:
+        white, fully metallic, fully rough.
+        """
         name = str(mat.name or f"material {len(self.materials)}")
-        doc = self._gltf_materials.get(mat.name) if mat.name is not None else None
+        doc = self._gltf_materials.get(mat.name, {}) if mat.name is not None else {}
+        pbr = doc.get("pbrMetallicRoughness") or {}
+        factor = mat.baseColorFactor
+        tm_base = (np.asarray(factor, np.float64) / 255.0).tolist() if factor is not None \
+            else [1.0, 1.0, 1.0, 1.0]
+        base = _float_list(pbr.get("baseColorFactor", tm_base), 4, 1.0)
+        metallic = _float_or(pbr.get("metallicFactor", mat.metallicFactor), 1.0)
+        roughness = _float_or(pbr.get("roughnessFactor", mat.roughnessFactor), 1.0)
+        emissive = _float_list(doc.get("emissiveFactor", mat.emissiveFactor), 3, 0.0)
+        strength = (doc.get("extensions") or {}).get("KHR_materials_emissive_strength")
+        if isinstance(strength, dict):
+            emissive = [e * _float_or(strength.get("emissiveStrength"), 1.0) for e in emissive]
+        alpha_mode = str(doc.get("alphaMode", mat.alphaMode or "OPAQUE"))
         repeat = True
-        if doc is not None:
-            # The JSON keeps full float precision; trimesh rounds baseColorFactor to uint8, which
-            # crushes dark linear colours.
-            pbr = doc.get("pbrMetallicRoughness", {}) or {}
-            base = _float_list(pbr.get("baseColorFactor"), 4, 1.0)
-            metallic = _float_or(pbr.get("metallicFactor"), 1.0)
-            roughness = _float_or(pbr.get("roughnessFactor"), 1.0)
-            emissive = _float_list(doc.get("emissiveFactor"), 3, 0.0)
-            strength = (doc.get("extensions", {}) or {}).get("KHR_materials_emissive_strength")
-            if isinstance(strength, dict):
-                emissive = [e * _float_or(strength.get("emissiveStrength"), 1.0)
-                            for e in emissive]
-            alpha_mode = str(doc.get("alphaMode", "OPAQUE"))
-            tex_info = pbr.get("baseColorTexture")
-            if isinstance(tex_info, dict):
-                repeat = self._gltf_texture_repeats(tex_info)
-                if "KHR_texture_transform" in (tex_info.get("extensions") or {}):
-                    self.warnings.append(f"material '{name}': texture transform ignored")
-                if mat.baseColorTexture is None:
-                    self.warnings.append(f"material '{name}': base colour texture "
-                                         f"{self._gltf_image_label(tex_info)} could not be "
-                                         "read, using its colour only")
-        else:
-            # glTF's defaults: white, fully metallic, fully rough.
-            factor = mat.baseColorFactor
-            base = (np.asarray(factor, np.float64) / 255.0).tolist() if factor is not None \
-                else [1.0, 1.0, 1.0, 1.0]
-            metallic = _float_or(mat.metallicFactor, 1.0)
-            roughness = _float_or(mat.roughnessFactor, 1.0)
-            emissive = _float_list(mat.emissiveFactor, 3, 0.0)
-            alpha_mode = str(mat.alphaMode or "OPAQUE")
+        label: str | None = None
+        tex_info = pbr.get("baseColorTexture")
+        if isinstance(tex_info, dict):
+            repeat = self._gltf_texture_repeats(tex_info)
+            label = self._gltf_image_label(tex_info)
+            if "KHR_texture_transform" in (tex_info.get("extensions") or {}):
+                self.warnings.append(f"material '{name}': texture transform ignored")
+            if mat.baseColorTexture is None:
+                self.warnings.append(f"material '{name}': base colour texture "
+                                     f"'{label or 'embedded image'}' could not be read, "
+                                     "using its colour only")
         opaque = alpha_mode.upper() == "OPAQUE"
         if opaque:
             base[3] = 1.0  # glTF: alpha is ignored for OPAQUE materials
@@ -414,7 +421,7 @@ class _SceneBuilder:
                 metallic *= means[2]
         texture = None
         if mat.baseColorTexture is not None:
-            texture = self._texture_index(mat.baseColorTexture, name, repeat, opaque)
+            texture = self._texture_index(mat.baseColorTexture, name, label, repeat, opaque)
         return Material(name, (base[0], base[1], base[2], base[3]), texture,
                         float(roughness), float(metallic),
                         (emissive[0], emissive[1], emissive[2]))
@@ -451,7 +458,7 @@ class _SceneBuilder:
         texture = None
         image = getattr(mat, "image", None)
         if image is not None:
-            texture = self._texture_index(image, name, True, False)
+            texture = self._texture_index(image, name, None, True, False)
         else:
             self._obj_untextured[name] = mat
         return Material(name, (rgb[0], rgb[1], rgb[2], float(np.clip(alpha, 0.0, 1.0))),
@@ -459,13 +466,14 @@ class _SceneBuilder:
 
     # ---- textures ------------------------------------------------------------------------
 
-    def _texture_index(self, image: PILImage, material: str, repeat: bool,
+    def _texture_index(self, image: PILImage, material: str, label: str | None, repeat: bool,
                        opaque: bool) -> int | None:
         key = (id(image), repeat, opaque)
         if key in self._texture_keys:
             return self._texture_keys[key]
         self._keep_alive.append(image)
-        label = str(image.info.get("file_path") or getattr(image, "filename", "") or material)
+        label = str(label or image.info.get("file_path") or getattr(image, "filename", "")
+                    or material)
         try:
             rgba = _image_to_rgba(image)
         except Exception as exc:  # noqa: BLE001 - PIL decodes lazily and raises anything
@@ -510,17 +518,19 @@ class _SceneBuilder:
             return True
         return _GL_CLAMP_TO_EDGE not in (sampler.get("wrapS"), sampler.get("wrapT"))
 
-    def _gltf_image_label(self, tex_info: dict[str, Any]) -> str:
+    def _gltf_image_label(self, tex_info: dict[str, Any]) -> str | None:
+        """The image's file name or name, to name textures and missing files after."""
         assert self.gltf is not None
         try:
             texture = self.gltf["textures"][int(tex_info["index"])]
             image = self.gltf["images"][int(texture["source"])]
         except (KeyError, IndexError, TypeError, ValueError):
-            return "(broken reference)"
+            return None
         uri = image.get("uri")
         if isinstance(uri, str) and not uri.startswith("data:"):
-            return f"'{uri}'"
-        return f"'{image.get('name', 'embedded image')}'"
+            return uri
+        name = image.get("name")
+        return str(name) if name else None
 
     def warn_missing_obj_textures(self) -> None:
         """Name the texture files an OBJ's MTL asks for that trimesh could not read.
@@ -812,13 +822,20 @@ def _interior_spawn(caster: RayCaster, normals: np.ndarray, lo: np.ndarray,
     front_frac = (facing & hit).reshape(dist.shape).sum(axis=1) / np.maximum(
         hit.reshape(dist.shape).sum(axis=1), 1)
     nearest = dist.min(axis=1)
-    inside = ((hit_frac >= _INSIDE_HIT_FRACTION) & (front_frac >= _FRONT_FACING_FRACTION)
-              & (nearest >= _BODY_RADIUS_M))
+    enclosed = (hit_frac >= _INSIDE_HIT_FRACTION) & (nearest >= _BODY_RADIUS_M)
+    inside = enclosed & (front_frac >= _FRONT_FACING_FRACTION)
+    reversed_walls = not inside.any()
+    if reversed_walls:
+        # Some exporters (SketchUp, for one) leave walls facing out; such a room still counts
+        # if it is big enough to walk around in, which a closed object's cavity is not.
+        inside = enclosed
     if not inside.any():
         return None
     eyes, floor_y, head, dist = eyes[inside], floor_y[inside], head[inside], dist[inside]
 
     level = _main_level(floor_y)
+    if reversed_walls and level.sum() * cell_area < _MIN_REVERSED_ROOM_M2:
+        return None
     eyes, floor_y, head, dist = eyes[level], floor_y[level], head[level], dist[level]
     # Most free space: the largest distance to the nearest wall, then the roomiest on average.
     finite = np.where(np.isfinite(dist), dist, diag)
@@ -875,9 +892,10 @@ def _main_level(floor_y: np.ndarray) -> np.ndarray:
     merged = counts + np.maximum(padded[:-2], padded[2:])
     large = np.flatnonzero(merged >= max(0.25 * merged.max(), 3))
     chosen = int(large.min())
-    centre = float(np.median(floor_y[(bins >= chosen - 1) & (bins <= chosen + 1)]))
-    if (bins == chosen).any():
-        centre = float(np.median(floor_y[bins == chosen]))
+    members = bins == chosen
+    if not members.any():  # large only thanks to a neighbour: centre on the neighbourhood
+        members = np.abs(bins - chosen) <= 1
+    centre = float(np.median(floor_y[members]))
     return np.abs(floor_y - centre) <= _LEVEL_BIN_M
 
 
@@ -971,10 +989,15 @@ def _interior_light_positions(spawn: SpawnResult, caster: RayCaster) -> list[np.
         d = np.min([np.linalg.norm(xz - c, axis=1) for c in centres], axis=0)
         centres.append(xz[int(np.argmax(d))])
     c = np.asarray(centres)
+
+    def nearest_centre(c: np.ndarray) -> np.ndarray:
+        return np.argmin(np.linalg.norm(xz[:, None, :] - c[None, :, :], axis=2), axis=1)
+
     for _ in range(8):
-        label = np.argmin(np.linalg.norm(xz[:, None, :] - c[None, :, :], axis=2), axis=1)
+        label = nearest_centre(c)
         c = np.asarray([xz[label == j].mean(axis=0) if (label == j).any() else c[j]
                         for j in range(k)])
+    label = nearest_centre(c)
     probe = _sphere_directions(32)
     out = []
     for j in range(k):
