@@ -116,6 +116,8 @@ def _draw_meshes(ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameCont
         if "u_eye" in prog:
             prog["u_eye"].value = tuple(eye.position)
             _scene_uniforms(prog, frame)
+        if "u_emissive" in prog:
+            prog["u_emissive"].value = tuple(mesh.material.emissive)
         if mesh.texture is not None:
             mesh.texture.use(0)
             prog["u_albedo"].value = 0
@@ -176,6 +178,33 @@ class LightingPass(RenderPass):
         if self.stage == "compute":
             self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
                                     | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+
+class EmissivePass(RenderPass):
+    """Deferred path: add the glow of emissive meshes on top of the lit image."""
+
+    name = "emissive"
+
+    def execute(self, frame: FrameContext) -> None:
+        emitters = [i for i, m in enumerate(frame.scene.meshes) if any(m.material.emissive)]
+        if not emitters:
+            return
+        ctx = self.ctx
+        ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)  # after the compute lighting
+        ctx.enable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        ctx.depth_func = "<="
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        prog = self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
+        for eye, tgt in zip(frame.eyes, frame.targets):
+            tgt.forward.use()
+            tgt.forward.depth_mask = False
+            prog["u_view_projection"].write(gl_bytes(eye.view_projection))
+            for index in emitters:
+                prog["u_emissive"].value = tuple(frame.scene.meshes[index].material.emissive)
+                frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
+            tgt.forward.depth_mask = True
+        ctx.depth_func = "<"
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
 
 
 class ForwardPass(RenderPass):

@@ -17,6 +17,7 @@ from app.scene import Scene
 from app.settings import Settings
 from render.gpu_scene import GpuScene
 from render.passes import (
+    EmissivePass,
     EyeTargets,
     ForwardPass,
     FrameContext,
@@ -38,10 +39,11 @@ class Renderer:
         self.shaders = ShaderLibrary(ctx)
         self.gbuffer = GBufferPass(ctx, self.shaders)
         self.lighting = LightingPass(ctx, self.shaders)
+        self.emissive = EmissivePass(ctx, self.shaders)
         self.forward = ForwardPass(ctx, self.shaders)
         self.present = PresentPass(ctx, self.shaders)
         self.overlay = OverlayPass(ctx, self.shaders)
-        self.passes: list[RenderPass] = [self.gbuffer, self.lighting, self.forward,
+        self.passes: list[RenderPass] = [self.gbuffer, self.lighting, self.emissive, self.forward,
                                          self.present, self.overlay]
         self.gpu_scene: GpuScene | None = None
         self.targets: list[EyeTargets] = []
@@ -63,6 +65,7 @@ class Renderer:
         for fragment in ("gbuffer.frag.glsl", "forward.frag.glsl"):
             for textured in (False, True):
                 self.shaders.program("geometry.vert.glsl", fragment, {"HAS_TEXTURE": textured})
+        self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
         self.shaders.compute("lighting.comp.glsl")
         for fragment in ("lighting.frag.glsl", "present.frag.glsl", "overlay.frag.glsl"):
             self.shaders.program("fullscreen.vert.glsl", fragment)
@@ -81,7 +84,7 @@ class Renderer:
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
         deferred = r.path == "deferred"
-        self.gbuffer.enabled = self.lighting.enabled = deferred
+        self.gbuffer.enabled = self.lighting.enabled = self.emissive.enabled = deferred
         self.forward.enabled = not deferred
         self.lighting.stage = r.lighting
         self.overlay.enabled = True

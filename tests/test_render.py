@@ -116,7 +116,7 @@ def test_lighting_pass_counts_samples_and_times_each_pass(host):
     r = host.renderer
     assert r.shaded_samples() == W * H  # both eyes, full rate
     ms = r.pass_ms()
-    assert set(ms) == {"gbuffer", "lighting", "present", "overlay"}
+    assert set(ms) == {"gbuffer", "lighting", "emissive", "present", "overlay"}
     assert all(v >= 0 for v in ms.values()) and ms["lighting"] > 0
     draw(host, checker_scene(), render__path="forward")
     assert set(r.pass_ms()) == {"forward", "present", "overlay"}
@@ -140,6 +140,16 @@ def test_bad_geometry_and_lights_never_reach_the_screen_as_nan(host):
         assert img.max() > 0
         for eye in (0, 1):
             assert np.isfinite(host.read_hdr(eye)).all()
+
+
+def test_emissive_surfaces_glow_without_lights_in_both_paths(host):
+    scene = Scene("glow", [quad("lamp", (0, 1.6, -2), 0.5)],
+                  [Material("m", (0.1, 0.1, 0.1, 1), emissive=(0.0, 0.0, 2.0))], [], []).sanitized()
+    for path in ("deferred", "forward"):
+        left = draw(host, scene, render__path=path)[:, : W // 2].astype(int)
+        centre = left[H // 2, W // 4]
+        assert centre[2] > 200 and centre[0] < 60, (path, centre)  # blue glow, no lights at all
+        assert left[5, 5].max() < 40  # the background stays dark
 
 
 def test_empty_scene_renders_the_background(host):
