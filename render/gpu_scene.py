@@ -5,6 +5,7 @@ Uploaded once per scene; never per frame. ``release()`` frees everything it made
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import moderngl
@@ -12,7 +13,9 @@ import numpy as np
 
 from app.scene import Material, Scene
 
+log = logging.getLogger(__name__)
 GL_SRGB8_ALPHA8 = 0x8C43
+MAX_LIGHTS = 1024  # must match shading.glsl; 32 KiB of the 64 KiB uniform block limit
 VERTEX_FORMAT = "3f 3f 2f 3f"
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_color")
 
@@ -53,8 +56,14 @@ class GpuScene:
                                        tex, int(m.indices.size)))
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self.lights = light_buffer_data(scene)
-        self.light_buffer = ctx.buffer(self.lights.tobytes() if len(scene.lights) else
-                                       np.zeros(8, np.float32).tobytes())
+        if len(self.lights) > MAX_LIGHTS:
+            log.warning("%s has %d lights; only the first %d are drawn", scene.name,
+                        len(self.lights), MAX_LIGHTS)
+            self.lights = self.lights[:MAX_LIGHTS]
+        block = np.zeros((2, MAX_LIGHTS, 4), np.float32)  # std140: positions, then colours
+        block[0, : len(self.lights)] = self.lights[:, :4]
+        block[1, : len(self.lights)] = self.lights[:, 4:]
+        self.light_buffer = ctx.buffer(block.tobytes())
 
     def vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
         key = (program.glo, index)

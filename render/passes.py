@@ -150,7 +150,7 @@ class LightingPass(RenderPass):
         self.stage = "compute"
 
     def execute(self, frame: FrameContext) -> None:
-        frame.scene.light_buffer.bind_to_storage_buffer(0)
+        frame.scene.light_buffer.bind_to_uniform_block(0)
         if self.stage == "compute":
             prog = self.shaders.compute("lighting.comp.glsl")
         else:
@@ -218,7 +218,7 @@ class ForwardPass(RenderPass):
 
     def execute(self, frame: FrameContext) -> None:
         ctx = self.ctx
-        frame.scene.light_buffer.bind_to_storage_buffer(0)
+        frame.scene.light_buffer.bind_to_uniform_block(0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
         with self._samples_query:
