@@ -244,15 +244,16 @@ class PresentPass(RenderPass):
         w, h = frame.targets[0].size
         frame.out.use()
         x, y = frame.out_origin
-        frame.out.viewport = (x, y, 2 * w, h)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        frame.targets[0].color.use(0)
-        frame.targets[1].color.use(1)
-        prog["u_left"].value, prog["u_right"].value = 0, 1
+        prog["u_eye_color"].value = 0
         prog["u_exposure"].value = frame.exposure
-        prog["u_eye_size"].value = (w, h)
-        prog["u_origin"].value = (x, y)
-        self.fullscreen(prog)
+        for index, tgt in enumerate(frame.targets):
+            origin = (x + index * w, y)
+            frame.out.viewport = (*origin, w, h)
+            prog["u_origin"].value = origin
+            tgt.color.use(0)
+            self.fullscreen(prog)
+        frame.out.viewport = (x, y, 2 * w, h)
 
 
 class OverlayPass(RenderPass):

@@ -1,12 +1,10 @@
 #version 430
-// Side-by-side presentation: left eye on the left half, right on the right; tone map + sRGB.
-#include "common.glsl"
+// Presentation of one eye into its half of the side-by-side view: tone map + sRGB encode.
+// The lighting output is already finite (storable), so no checks are repeated here.
 
-uniform sampler2D u_left;
-uniform sampler2D u_right;
+uniform sampler2D u_eye_color;
 uniform float u_exposure;
-uniform ivec2 u_eye_size;
-uniform ivec2 u_origin;  // lower-left corner of the stereo view in the target
+uniform ivec2 u_origin;  // lower-left corner of this eye's viewport in the target
 
 out vec4 out_color;
 
@@ -15,14 +13,12 @@ vec3 tonemap(vec3 x) {  // Narkowicz's ACES fit: filmic shoulder, keeps mid-tone
 }
 
 vec3 srgb_encode(vec3 c) {
-    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, c));
+    vec3 curve = 1.055 * exp2(log2(max(c, vec3(1e-7))) * (1.0 / 2.4)) - 0.055;
+    return mix(c * 12.92, curve, step(0.0031308, c));
 }
 
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy) - u_origin;
-    bool right = p.x >= u_eye_size.x;
-    ivec2 q = ivec2(right ? p.x - u_eye_size.x : p.x, p.y);
-    q = clamp(q, ivec2(0), u_eye_size - 1);
-    vec3 hdr = right ? texelFetch(u_right, q, 0).rgb : texelFetch(u_left, q, 0).rgb;
-    out_color = vec4(srgb_encode(tonemap(storable(hdr) * u_exposure)), 1.0);
+    ivec2 q = ivec2(gl_FragCoord.xy) - u_origin;
+    vec3 hdr = texelFetch(u_eye_color, q, 0).rgb;
+    out_color = vec4(srgb_encode(tonemap(hdr * u_exposure)), 1.0);
 }
