@@ -301,7 +301,9 @@ class OverlayPass(RenderPass):
         frame.out.viewport = (x0, y0, 2 * w, h)
         ctx = self.ctx
         ctx.enable(moderngl.BLEND)
-        ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+        # Colour blends; destination alpha stays 1, or Qt composites the view as translucent.
+        ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ZERO,
+                          moderngl.ONE)
         show_text = self.show_text and self._text_tex is not None
         tw, th = self._text_tex.size if show_text else (0, 0)
         if show_text:
