@@ -161,3 +161,36 @@ def test_texture_test_reference_image(host, compare_reference):
     """Screenshot test on the pinned software rasterizer (Mesa llvmpipe)."""
     img = draw(host, checker_scene())
     compare_reference("checker_stereo_320x180", img, max_mean=1.0, max_frac=0.003)
+
+
+def test_showroom_walkthrough_frame_is_a_lit_room_in_stereo():
+    from app import scenes
+    from app.session import Session
+
+    settings = Settings()
+
+    scene = scenes.resolve("showroom")
+    session = Session(settings)
+    session.set_scene(scene)
+    with OffscreenHost(640, 360, settings) as h:
+        h.set_scene(scene)
+        session.apply_path_frame(0)
+        img = h.draw(session.frame_input(*h.eye_size))
+        assert not h.renderer.errors
+    left, right = img[:, :320].astype(float), img[:, 320:].astype(float)
+    for eye in (left, right):
+        assert 40 < eye.mean() < 200 and eye.std() > 25  # lit, textured, not blown out
+        assert (eye.max(axis=2) < 8).mean() < 0.02  # hardly any black: the room surrounds us
+    assert np.abs(left - right).mean() > 2  # two viewpoints, not one image twice
+
+
+def test_sibenik_renders_headless(scenes_dir, tmp_path):
+    from PIL import Image
+
+    from app.cli import main
+
+    out = tmp_path / "sibenik.png"
+    assert main(["render", "--scene", str(scenes_dir / "sibenik" / "sibenik.obj"),
+                 "--out", str(out), "--size", "320x180"]) == 0
+    img = np.asarray(Image.open(out)).astype(float)
+    assert img.std() > 20 and 30 < img.mean() < 220
