@@ -7,13 +7,14 @@ run and machine; only the timings vary.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from app import scenes
+from app import metrics, scenes
 from app.fileio import atomic_write_json, atomic_write_png
 from app.overlay_text import text_image
 from app.paths import FIXED_DT, CameraPath
@@ -64,14 +65,34 @@ def render_frame(scene_name: str, out: str | Path, size: tuple[int, int], frame:
 
 def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Settings,
           warmup: int = 5, path: CameraPath | None = None,
-          progress: Progress | None = None) -> dict:
-    """Replay the path; per-frame wall time and per-pass GPU time. frames=0: the whole path."""
+          progress: Progress | None = None, compare_every: int = 0) -> dict:
+    """Replay the path; per-frame wall time and per-pass GPU time. frames=0: the whole path.
+
+    With ``compare_every`` K > 0, every K-th frame is also rendered at full quality (TCR off) by
+    a second host and the error of this setting against it is measured (display values): for
+    the whole frame and for the gazed object alone.
+    """
     scene, session, host = _open(scene_name, size, settings, path)
     assert session.path is not None
     total = frames if frames > 0 else session.path.frame_count()
+    reference = None
+    if compare_every > 0:
+        from render.offscreen import OffscreenHost
+
+        ref_settings = settings.copy()
+        ref_settings.tcr.enabled = False
+        reference = OffscreenHost(*size, ref_settings)
+        reference.set_scene(scene)
+        reference.set_text_image(None)
+    ppd = metrics.pixels_per_degree(
+        size[0] // 2, session.camera.horizontal_fov_deg(size[0] // 2, size[1]))
     frame_ms: list[float] = []
     pass_ms: dict[str, list[float]] = {}
     samples: list[int] = []
+    resident: list[int] = []
+    per_frame: list[dict] = []
+    errors_whole: list[dict] = []
+    errors_gazed: list[dict] = []
     try:
         host.set_text_image(None)
         for i in range(-warmup, total):
@@ -86,17 +107,39 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
             for name, ms in host.renderer.pass_ms().items():
                 pass_ms.setdefault(name, []).append(ms)
             samples.append(host.renderer.shaded_samples())
+            resident.append(host.renderer.texture_resident_bytes())
+            gazed = session.gazed
+            record = {"frame": i, "ms": dt, "state": session.state, "gazed":
+                      session.gazed_object(), "gazed_level": (session.levels[gazed] if (
+                          settings.tcr.enabled and session.levels and gazed is not None)
+                          else 0), "resident_bytes": resident[-1]}
+            if reference is not None and i % compare_every == 0:
+                test_img = host.draw(frame)
+                ref_img = reference.draw(frame)
+                whole = metrics.compare(ref_img, test_img, ppd)
+                record["error"] = whole
+                errors_whole.append({**whole, "state": session.state})
+                if gazed is not None:
+                    ids = reference.object_ids(frame)
+                    mask = np.hstack(ids) == gazed
+                    if mask.any():
+                        g = metrics.compare(ref_img, test_img, ppd, mask)
+                        record["error_gazed"] = g
+                        errors_gazed.append({**g, "state": session.state})
+            per_frame.append(record)
             if progress:
                 progress(i + 1, total)
         errors = host.renderer.errors
         device = host.ctx.info.get("GL_RENDERER", "")
-        resident = host.renderer.texture_resident_bytes()
     finally:
         host.close()
+        if reference is not None:
+            reference.close()
     ft = summarize(frame_ms)
-    return {
+    result = {
         "scene": {"name": scene.name, "source": scene.source, "triangles": scene.triangle_count,
                   "lights": len(scene.lights), "textures": len(scene.textures)},
+        "path": session.path.scene or scene.name,
         "size": {"width": size[0], "height": size[1], "eye": [size[0] // 2, size[1]]},
         "device": device,
         "frames": len(frame_ms),
@@ -106,11 +149,48 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
         "frame_ms": ft,
         "passes": {k: {"median_ms": summarize(v)["median"], "p95_ms": summarize(v)["p95"]}
                    for k, v in pass_ms.items()},
-        "texture_resident_bytes": resident,
+        "texture_resident_bytes": int(np.median(resident)) if resident else 0,
+        "texture_resident_bytes_max": max(resident, default=0),
         "shaded_samples": int(np.median(samples)) if samples else 0,
+        "by_state": _group(per_frame, "state"),
+        "by_gazed_level": _group(per_frame, "gazed_level"),
         "settings": settings.to_dict(),
         "errors": errors,
+        "per_frame": per_frame,
     }
+    if reference is not None:
+        result["error_vs_full_quality"] = {
+            "reference": "same frame with TCR off (finest texture levels), display values",
+            "pixels_per_degree": ppd,
+            "frame": _mean_errors(errors_whole), "gazed_object": _mean_errors(errors_gazed),
+            "by_state": {str(s): {"frame": _mean_errors([e for e in errors_whole
+                                                         if e["state"] == s]),
+                                  "gazed_object": _mean_errors([e for e in errors_gazed
+                                                                if e["state"] == s])}
+                         for s in sorted({e["state"] for e in errors_whole})},
+        }
+    return result
+
+
+def _group(records: list[dict], key: str) -> dict[str, dict]:
+    out: dict[str, dict] = {}
+    for value in sorted({r[key] for r in records}, key=str):
+        ms = [r["ms"] for r in records if r[key] == value]
+        med = summarize(ms)["median"]
+        out[str(value)] = {"frames": len(ms), "frame_ms_median": med,
+                           "fps_median": 1000.0 / med if med > 0 else 0.0}
+    return out
+
+
+def _mean_errors(rows: list[dict]) -> dict:
+    """Mean PSNR over frames that differ (identical frames have infinite PSNR), SSIM, FLIP."""
+    if not rows:
+        return {"frames": 0}
+    finite = [r["psnr"] for r in rows if math.isfinite(r["psnr"])]
+    return {"frames": len(rows), "identical_frames": len(rows) - len(finite),
+            "psnr_db": float(np.mean(finite)) if finite else math.inf,
+            "ssim": float(np.mean([r["ssim"] for r in rows])),
+            "flip": float(np.nanmean([r["flip"] for r in rows]))}
 
 
 def demo(scene_name: str, out_dir: str | Path, size: tuple[int, int], settings: Settings,

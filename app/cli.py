@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import math
 import os
 import sys
 from pathlib import Path
@@ -17,12 +18,15 @@ EXIT_USAGE = 2
 def _common(p: argparse.ArgumentParser, scene_required: bool = False) -> None:
     p.add_argument("--scene", default=None if scene_required else "showroom",
                    required=scene_required,
-                   help="built-in scene (showroom, showroom-100, texture-test) or a model file "
+                   help="built-in scene (showroom, showroom-100, texture-test, tcr-cube) or a "
+                        "model file "
                         "(.gltf .glb .obj .ply)")
     p.add_argument("--set", dest="assignments", action="append", default=[], metavar="KEY=VALUE",
                    help="change a setting, e.g. --set stereo.ipd_mm=60 (repeatable)")
     p.add_argument("--preset", help="settings preset saved from the window (JSON)")
-    p.add_argument("--path", help="camera+gaze path (JSON) instead of the scene's default")
+    p.add_argument("--path", help="camera+gaze path (JSON file, or a built-in: "
+                                  "showroom_walkthrough, tcr_cube_distance, tcr_cube_orbit, "
+                                  "tcr_cube_gaze) instead of the scene's default")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -43,6 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
     b.add_argument("--frames", type=int, default=120, help="frames to time (0: the whole path)")
     b.add_argument("--warmup", type=int, default=5, help="frames rendered before timing")
+    b.add_argument("--compare-every", type=int, default=0, metavar="K",
+                   help="every K-th frame, measure PSNR/SSIM/FLIP against full quality")
     d = sub.add_parser("demo", help="walk the default path headless: screenshots + summary")
     _common(d)
     d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
@@ -73,7 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     args = build_parser().parse_args(argv)
     from app.loaders import SceneLoadError
-    from app.paths import CameraPath, PathError
+    from app.paths import PathError
+    from app.scenes import resolve_path
     from render.context import GLUnavailableError
     from render.shaders import ShaderError
 
@@ -84,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                 meta = settings.describe(key)
                 print(f"{key} = {settings.get(key)!r}  # {meta.get('help', '')}")
             return 0
-        path = CameraPath.load(args.path) if args.path else None
+        path = resolve_path(args.path) if args.path else None
         return _run(args, settings, path)
     except (SettingsError, SceneLoadError, PathError, GLUnavailableError, ShaderError,
             ValueError, OSError) as exc:
@@ -103,13 +110,20 @@ def _run(args: argparse.Namespace, settings: Settings, path) -> int:
     if args.command == "bench":
         size = bench.parse_size(args.size)
         result = bench.bench(args.scene, size, args.frames, settings, args.warmup, path,
-                             _progress("bench"))
+                             _progress("bench"), args.compare_every)
         from app.fileio import atomic_write_json
 
         atomic_write_json(args.out, result)
         passes = ", ".join(f"{k} {v['median_ms']:.1f}" for k, v in result["passes"].items())
         print(f"{result['scene']['name']} {args.size}: {result['fps_median']:.1f} fps, "
               f"frame {result['frame_ms']['median']:.1f} ms median; passes (ms) {passes}")
+        print(f"textures resident: {result['texture_resident_bytes'] / 1e6:.2f} MB (median)")
+        err = result.get("error_vs_full_quality")
+        if err and err["frame"].get("frames"):
+            f, g = err["frame"], err["gazed_object"]
+            print(f"error vs full quality: frame PSNR {f['psnr_db']:.1f} dB, SSIM "
+                  f"{f['ssim']:.3f}, FLIP {f['flip']:.3f}; gazed object "
+                  f"{g.get('psnr_db', math.nan):.1f} dB, SSIM {g.get('ssim', math.nan):.3f}")
         print(f"wrote {args.out}")
         return 1 if result["errors"] else 0
     if args.command == "demo" or not has_display():

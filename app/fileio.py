@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -33,7 +34,8 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
 
 def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> Path:
-    text = json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=_json_default)
+    """Strict JSON: non-finite floats (an infinite PSNR of identical frames) become null."""
+    text = json.dumps(_finite_only(obj), indent=2, allow_nan=False, default=_json_default)
     return atomic_write_bytes(path, (text + "\n").encode("utf-8"))
 
 
@@ -46,6 +48,16 @@ def atomic_write_png(path: str | os.PathLike[str], rgb: Any) -> Path:
     buf = io.BytesIO()
     Image.fromarray(rgb).save(buf, format="PNG")
     return atomic_write_bytes(path, buf.getvalue())
+
+
+def _finite_only(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_only(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_only(v) for v in obj]
+    return obj
 
 
 def _json_default(obj: Any) -> Any:

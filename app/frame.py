@@ -12,3 +12,4 @@ class FrameInput:
     eyes: list[EyeView]  # left, right
     gaze: tuple[float, float] = (0.5, 0.5)  # normalised in each eye viewport, (0, 0) top-left
     gaze_fixed: bool = False
+    levels: list[int] | None = None  # TCR pyramid level per mesh; None: full quality

@@ -25,12 +25,38 @@ def _texture_test() -> Scene:
     return build_texture_test_scene()
 
 
+def _tcr_cube() -> Scene:
+    from assets.tcr_cube import build_tcr_cube
+
+    return build_tcr_cube()
+
+
 BUILTIN: dict[str, Callable[[], Scene]] = {
     "showroom": _showroom(4),
     "showroom-100": _showroom(100),
     "texture-test": _texture_test,
+    "tcr-cube": _tcr_cube,
 }
-BUILTIN_PATHS = {"showroom": "showroom_walkthrough", "showroom-100": "showroom_walkthrough"}
+BUILTIN_PATHS = {"showroom": "showroom_walkthrough", "showroom-100": "showroom_walkthrough",
+                 "tcr-cube": "tcr_cube_distance"}
+
+
+def _generated_paths() -> dict[str, Callable[[], CameraPath]]:
+    from assets import tcr_cube
+
+    return {"tcr_cube_distance": tcr_cube.distance_path, "tcr_cube_orbit": tcr_cube.orbit_path,
+            "tcr_cube_gaze": tcr_cube.gaze_path}
+
+
+def resolve_path(name_or_file: str | os.PathLike[str]) -> CameraPath:
+    """A built-in path by name (e.g. tcr_cube_orbit, showroom_walkthrough), else a JSON file."""
+    key = str(name_or_file)
+    generated = _generated_paths()
+    if key in generated:
+        return generated[key]()
+    if not Path(key).suffix and key in BUILTIN_PATHS.values():
+        return builtin_path(key)
+    return CameraPath.load(key)
 
 
 def resolve(name_or_path: str | os.PathLike[str]) -> Scene:
@@ -46,7 +72,7 @@ def resolve(name_or_path: str | os.PathLike[str]) -> Scene:
 def default_path(scene: Scene) -> CameraPath:
     """The scene's walkthrough; loaded files get a slow look around from the spawn."""
     if scene.name in BUILTIN_PATHS and scene.source == "built-in":
-        return builtin_path(BUILTIN_PATHS[scene.name])
+        return resolve_path(BUILTIN_PATHS[scene.name])
     return look_around(scene)
 
 

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from app.camera import StereoCamera
 from app.frame import FrameInput
 from app.gaze import GazeModel
@@ -17,6 +19,7 @@ from app.raycast import RayCaster
 from app.scene import Scene
 from app.scenes import default_path
 from app.settings import Settings
+from app.tcr import LevelReason, MotionStateMachine, TcrController, pyramid_sizes
 
 
 class Session:
@@ -31,6 +34,12 @@ class Session:
         self.time = 0.0
         self.viewpoint_speed = 0.0  # m/s plus turning (deg/s scaled), from the last step
         self._last_pose: tuple[float, float, float, float, float] | None = None
+        t = self.settings.tcr
+        self.motion = MotionStateMachine(t.move_on, t.move_off, t.window_s)
+        self.tcr: TcrController | None = None
+        self.levels: list[int] | None = None
+        self.gazed: int | None = None
+        self._frame = -2  # last path frame applied (-2: none)
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
         self.scene = scene
@@ -40,23 +49,62 @@ class Session:
         self.walker.place(sp.position, sp.yaw_deg, sp.pitch_deg)
         self.path = path or default_path(scene)
         self.time = 0.0
+        self._frame = -2
+        self._reset_motion()
+        n_levels = []
+        for mesh in scene.meshes:
+            tex = scene.materials[mesh.material].texture
+            n_levels.append(len(pyramid_sizes(*scene.textures[tex].size)) - 1
+                            if tex is not None else 0)
+        lo = np.array([m.bounds()[0] for m in scene.meshes]).reshape(-1, 3)
+        hi = np.array([m.bounds()[1] for m in scene.meshes]).reshape(-1, 3)
+        self.tcr = TcrController(lo, hi, n_levels, [m.name for m in scene.meshes])
 
     # -- driving -------------------------------------------------------------------------------
     def apply_path_frame(self, n: int, dt: float = FIXED_DT) -> PathKey:
-        """Put body and gaze where the path is at frame n (fixed step: reproducible)."""
+        """Put body and gaze where the path is at frame n (fixed step: reproducible).
+
+        The motion state depends on the frames before, so a jump replays the path from frame 0
+        (no rendering, a few milliseconds): frame N is the same whether played or sought.
+        """
         if self.path is None:
             raise RuntimeError("no path: call set_scene first")
+        n = max(0, int(n))
+        if n != self._frame + 1:
+            self._reset_motion()
+            for k in range(n):
+                self.apply_key(self.path.at_frame(k, dt), dt)
         key = self.path.at_frame(n, dt)
         self.apply_key(key, dt)
+        self._frame = n
         return key
+
+    def _reset_motion(self) -> None:
+        t = self.settings.tcr
+        self.motion = MotionStateMachine(t.move_on, t.move_off, t.window_s)
+        self._last_pose = None
+        self.viewpoint_speed = 0.0
 
     def apply_key(self, key: PathKey, dt: float) -> None:
         self.walker.place(key.position, key.yaw_deg, key.pitch_deg)
         self.gaze.set_cursor(*key.gaze)
         self.gaze.button_held = key.gaze_fixed
+        self.tick(dt)
+        self.time = key.t
+
+    def tick(self, dt: float) -> None:
+        """Once per frame in both hosts: gaze, motion state, gazed object, texture levels."""
         self.gaze.update(dt, self.settings.stereo.fov_deg)
         self.observe_motion(dt)
-        self.time = key.t
+        t = self.settings.tcr
+        m = self.motion
+        m.move_on, m.move_off, m.window_s = t.move_on, t.move_off, t.window_s
+        m.update(dt, self.viewpoint_speed, self.gaze.state.fixed)
+        self.gazed = self.gazed_index()
+        if self.tcr is not None:
+            self.levels = [int(v) for v in self.tcr.update(
+                self.walker.position, self.gazed, m.viewpoint_moving, m.gaze_fixed,
+                self.settings.render.brightness, t)]
 
     def observe_motion(self, dt: float) -> None:
         """Viewpoint speed since the last call: metres per second plus turning at 1 m per 30 deg."""
@@ -70,13 +118,15 @@ class Session:
         self._last_pose = pose  # type: ignore[assignment]
 
     @property
-    def viewpoint_moving(self) -> bool:
-        return self.viewpoint_speed > 0.05
-
-    @property
     def state(self) -> int:
         """The TCR paper's state: 0 still/moving gaze, 1 moving/moving, 2 still/fixed, 3 both."""
-        return int(self.viewpoint_moving) + 2 * int(self.gaze.state.fixed)
+        return self.motion.state
+
+    def reason(self, index: int | None) -> LevelReason | None:
+        """Why mesh ``index`` has its texture level (None without TCR data)."""
+        if self.tcr is None or index is None or not self.tcr.reasons:
+            return None
+        return self.tcr.reasons[index] if 0 <= index < len(self.tcr.reasons) else None
 
     def current_key(self) -> PathKey:
         """The present pose and gaze as a path key (for recording)."""
@@ -88,11 +138,12 @@ class Session:
         w = self.walker
         self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
         g = self.gaze.state
-        return FrameInput(self.camera.eyes(eye_width, eye_height), (g.u, g.v), g.fixed)
+        return FrameInput(self.camera.eyes(eye_width, eye_height), (g.u, g.v), g.fixed,
+                          self.levels if self.settings.tcr.enabled else None)
 
     # -- queries -------------------------------------------------------------------------------
-    def gazed_object(self, eye_width: int = 640, eye_height: int = 720) -> str | None:
-        """Name of the mesh under the gaze ray of the left eye, or None."""
+    def gazed_index(self, eye_width: int = 640, eye_height: int = 720) -> int | None:
+        """Index of the mesh hit by the left eye's gaze ray, or None."""
         if self.scene is None or self.caster is None:
             return None
         w = self.walker
@@ -102,4 +153,10 @@ class Session:
         dist, owner = self.caster.cast(eye.position, eye.ray(g.u, g.v))
         if not math.isfinite(dist) or owner < 0:
             return None
-        return self.scene.meshes[owner].name
+        return int(owner)
+
+    def gazed_object(self) -> str | None:
+        """Name of the mesh under the gaze (as of the last tick), or None."""
+        if self.scene is None or self.gazed is None:
+            return None
+        return self.scene.meshes[self.gazed].name

@@ -68,11 +68,33 @@ class GazeSettings:
 
 
 @dataclass
+class TcrSettings:
+    """Adaptive texture mapping (TCR paper): which terms choose each object's pyramid level."""
+
+    enabled: bool = _opt(False, "adapt texture levels per object (off: full quality)")
+    preset: str = _opt("ergonomics", "term set: psychology (d,g,l), ergonomics (d,v,l) or custom",
+                       choices=("psychology", "ergonomics", "custom"))
+    use_d: bool = _opt(True, "custom: distance term d")
+    use_v: bool = _opt(True, "custom: viewpoint-motion term v (+1 while moving)")
+    use_g: bool = _opt(False, "custom: gaze term g (-1 on the gazed object while fixed)")
+    use_l: bool = _opt(True, "custom: brightness term l (+1 per halving)")
+    mode: str = _opt("clamp", "paper: sample exactly level j; clamp: mipmapping, finest level j",
+                     choices=("paper", "clamp"))
+    f_m: float = _opt(1.0, "eye-to-screen distance f in j = floor(log2((d+f)/f)) (m)",
+                      lo=1e-6, hi=100.0)
+    move_on: float = _opt(0.15, "viewpoint counts as moving above this speed", lo=0.0, hi=100.0)
+    move_off: float = _opt(0.05, "... and as still again below this speed", lo=0.0, hi=100.0)
+    window_s: float = _opt(0.15, "a state change must persist this long (s)", lo=0.0, hi=5.0)
+    tint: bool = _opt(False, "tint every object by its texture level")
+
+
+@dataclass
 class Settings:
     stereo: StereoSettings = field(default_factory=StereoSettings)
     render: RenderSettings = field(default_factory=RenderSettings)
     navigation: NavigationSettings = field(default_factory=NavigationSettings)
     gaze: GazeSettings = field(default_factory=GazeSettings)
+    tcr: TcrSettings = field(default_factory=TcrSettings)
 
     # -- dotted-key access -------------------------------------------------------------------
     def _locate(self, key: str) -> tuple[Any, dataclasses.Field[Any]]:

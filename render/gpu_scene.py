@@ -1,6 +1,7 @@
-"""The scene on the GPU: one vertex/index buffer pair per mesh, mipmapped sRGB textures.
+"""The scene on the GPU: one vertex/index buffer pair per mesh, texture pyramids, lights.
 
-Uploaded once per scene; never per frame. ``release()`` frees everything it made.
+Geometry is uploaded once per scene; textures stream their pyramid levels (TextureStreamer).
+``release()`` frees everything it made.
 """
 
 from __future__ import annotations
@@ -12,9 +13,9 @@ import moderngl
 import numpy as np
 
 from app.scene import Material, Scene
+from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
-GL_SRGB8_ALPHA8 = 0x8C43
 MAX_LIGHTS = 1024  # must match shading.glsl; 32 KiB of the 64 KiB uniform block limit
 VERTEX_FORMAT = "3f 3f 2f 3f"
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_color")
@@ -26,7 +27,7 @@ class GpuMesh:
     vbo: moderngl.Buffer
     ibo: moderngl.Buffer
     material: Material
-    texture: moderngl.Texture | None
+    texture: int | None  # index into GpuScene.streamer
     vertex_count: int
 
 
@@ -34,26 +35,15 @@ class GpuScene:
     def __init__(self, ctx: moderngl.Context, scene: Scene, anisotropy: float = 1.0) -> None:
         self.ctx = ctx
         self.scene = scene
-        self.textures: list[moderngl.Texture] = []
-        self.texture_bytes = 0
-        for tex in scene.textures:
-            rgba = np.ascontiguousarray(np.flipud(tex.rgba))  # GL's row 0 is the bottom (v = 0)
-            t = ctx.texture(tex.size, 4, rgba.tobytes(), internal_format=GL_SRGB8_ALPHA8)
-            t.build_mipmaps()
-            t.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-            t.repeat_x = t.repeat_y = tex.repeat
-            t.anisotropy = anisotropy
-            self.textures.append(t)
-            self.texture_bytes += mip_chain_bytes(*tex.size, 4)
+        self.streamer = TextureStreamer(ctx, scene.textures, anisotropy=anisotropy)
         self.meshes: list[GpuMesh] = []
         for m in scene.meshes:
             colors = m.colors if m.colors is not None else np.ones_like(m.positions)
             data = np.hstack([m.positions, m.normals, m.uvs, colors]).astype(np.float32)
             mat = scene.materials[m.material]
-            tex = self.textures[mat.texture] if mat.texture is not None else None
             self.meshes.append(GpuMesh(m.name, ctx.buffer(data.tobytes()),
                                        ctx.buffer(m.indices.astype(np.uint32).tobytes()), mat,
-                                       tex, int(m.indices.size)))
+                                       mat.texture, int(m.indices.size)))
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self.lights = light_buffer_data(scene)
         if len(self.lights) > MAX_LIGHTS:
@@ -82,25 +72,22 @@ class GpuScene:
         for m in self.meshes:
             m.vbo.release()
             m.ibo.release()
-        for t in self.textures:
-            t.release()
+        self.streamer.release()
         self.light_buffer.release()
         self._vaos.clear()
         self.meshes.clear()
-        self.textures.clear()
+
+    @property
+    def texture_bytes(self) -> int:
+        return self.streamer.resident_bytes()
+
+    def texture_levels(self) -> list[int]:
+        """Pyramid depth n of each mesh's texture (0 for untextured meshes)."""
+        return [self.streamer.n_levels(m.texture) if m.texture is not None else 0
+                for m in self.meshes]
 
 
 def light_buffer_data(scene: Scene) -> np.ndarray:
     rows = [(*light.position, light.range_m, *light.color, light.intensity)
             for light in scene.lights]
     return np.asarray(rows, np.float32).reshape(-1, 8)
-
-
-def mip_chain_bytes(width: int, height: int, bytes_per_texel: int) -> int:
-    total = 0
-    w, h = width, height
-    while True:
-        total += w * h * bytes_per_texel
-        if w == 1 and h == 1:
-            return total
-        w, h = max(1, w // 2), max(1, h // 2)

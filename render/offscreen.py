@@ -54,6 +54,10 @@ class OffscreenHost:
             self.renderer.render(frame, self.fbo)
             self.ctx.finish()
 
+    def object_ids(self, frame: FrameInput) -> list[np.ndarray]:
+        with self.ctx:
+            return self.renderer.object_ids(frame)
+
     def read_hdr(self, eye: int) -> np.ndarray:
         with self.ctx:
             return self.renderer.read_hdr(eye)

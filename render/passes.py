@@ -41,6 +41,15 @@ class EyeTargets:
             obj.release()
 
 
+# Level legend for the TCR tint: level 0 unpainted, then blue, cyan, green, yellow, orange, red.
+LEVEL_TINTS = ((1.0, 1.0, 1.0), (0.15, 0.35, 1.0), (0.0, 0.9, 0.9), (0.1, 0.85, 0.1),
+               (1.0, 0.95, 0.0), (1.0, 0.55, 0.0), (1.0, 0.1, 0.1))
+
+
+def level_tint(level: int) -> tuple[float, float, float]:
+    return LEVEL_TINTS[min(max(level, 0), len(LEVEL_TINTS) - 1)]
+
+
 @dataclass
 class FrameContext:
     """What every pass of one frame may read."""
@@ -55,6 +64,9 @@ class FrameContext:
     out_origin: tuple[int, int]  # lower-left of the stereo view inside ``out``
     gaze: tuple[float, float]
     gaze_fixed: bool
+    levels: list[int] | None = None  # TCR level per mesh (None: full quality)
+    tcr_mode: str = "clamp"
+    tint: bool = False
 
 
 class RenderPass:
@@ -103,10 +115,15 @@ def _scene_uniforms(prog: moderngl.Program, frame: FrameContext) -> None:
 
 def _draw_meshes(ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameContext,
                  eye: EyeView, fragment: str) -> None:
-    """Draw every mesh for one eye with its material (texture as a shader variant)."""
+    """Draw every mesh for one eye with its material (texture and TCR mode as variants)."""
+    streamer = frame.scene.streamer
+    tcr = frame.levels is not None
     for index, mesh in enumerate(frame.scene.meshes):
-        prog = shaders.program("geometry.vert.glsl", fragment,
-                               {"HAS_TEXTURE": mesh.texture is not None})
+        defines: dict[str, object] = {"HAS_TEXTURE": mesh.texture is not None}
+        if tcr:
+            defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
+            defines["TCR_TINT"] = frame.tint
+        prog = shaders.program("geometry.vert.glsl", fragment, defines)
         prog["u_view_projection"].write(gl_bytes(eye.view_projection))
         prog["u_base_color"].value = tuple(mesh.material.base_color)
         if "u_roughness" in prog:
@@ -118,9 +135,15 @@ def _draw_meshes(ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameCont
             _scene_uniforms(prog, frame)
         if "u_emissive" in prog:
             prog["u_emissive"].value = tuple(mesh.material.emissive)
+        level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
-            mesh.texture.use(0)
+            resident = streamer.resident[mesh.texture]
+            resident.tex.use(0)
             prog["u_albedo"].value = 0
+            if "u_level" in prog:
+                prog["u_level"].value = float(level - resident.base)
+        if "u_tint" in prog:
+            prog["u_tint"].value = level_tint(level)
         frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
 
 
@@ -341,3 +364,51 @@ def _release_query(query: moderngl.Query) -> None:
     release = getattr(query, "release", None) or getattr(query.mglo, "release", None)
     if release is not None:
         release()
+
+
+class ObjectIdPass(RenderPass):
+    """Which mesh covers each pixel, per eye; on request only (error masks), not every frame."""
+
+    name = "ids"
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
+        super().__init__(ctx, shaders)
+        self._targets: list[tuple[moderngl.Texture, moderngl.Texture, moderngl.Framebuffer]] = []
+        self.result: list[np.ndarray] = []
+
+    def _ensure(self, size: tuple[int, int]) -> None:
+        if self._targets and self._targets[0][0].size == size:
+            return
+        self._release_targets()
+        for _ in range(2):
+            ids = self.ctx.texture(size, 1, dtype="f4")
+            depth = self.ctx.depth_texture(size)
+            self._targets.append((ids, depth, self.ctx.framebuffer([ids], depth)))
+
+    def execute(self, frame: FrameContext) -> None:
+        self._ensure(frame.targets[0].size)
+        prog = self.shaders.program("geometry.vert.glsl", "ids.frag.glsl")
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.BLEND)
+        self.result = []
+        for eye, (ids, _depth, fbo) in zip(frame.eyes, self._targets):
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            prog["u_view_projection"].write(gl_bytes(eye.view_projection))
+            for index in range(len(frame.scene.meshes)):
+                prog["u_id"].value = float(index + 1)
+                frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
+            data = np.frombuffer(ids.read(), np.float32).reshape(ids.size[1], ids.size[0])
+            self.result.append(np.flipud(data).astype(np.int32) - 1)
+        self.ctx.disable(moderngl.DEPTH_TEST)
+
+    def _release_targets(self) -> None:
+        for ids, depth, fbo in self._targets:
+            fbo.release()
+            ids.release()
+            depth.release()
+        self._targets.clear()
+
+    def release(self) -> None:
+        super().release()
+        self._release_targets()

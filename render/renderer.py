@@ -23,6 +23,7 @@ from render.passes import (
     FrameContext,
     GBufferPass,
     LightingPass,
+    ObjectIdPass,
     OverlayPass,
     PresentPass,
     RenderPass,
@@ -43,6 +44,7 @@ class Renderer:
         self.forward = ForwardPass(ctx, self.shaders)
         self.present = PresentPass(ctx, self.shaders)
         self.overlay = OverlayPass(ctx, self.shaders)
+        self.ids = ObjectIdPass(ctx, self.shaders)  # on request, not part of the frame
         self.passes: list[RenderPass] = [self.gbuffer, self.lighting, self.emissive, self.forward,
                                          self.present, self.overlay]
         self.gpu_scene: GpuScene | None = None
@@ -62,9 +64,16 @@ class Renderer:
 
     def _warm_up(self) -> None:
         """Compile every shader variant now, so the first frames do not stall."""
+        tcr = self.settings.tcr
+        modes = [{}]
+        if tcr.enabled:
+            mode = "TCR_PAPER" if tcr.mode == "paper" else "TCR_CLAMP"
+            modes = [{mode: True, "TCR_TINT": tcr.tint}]
         for fragment in ("gbuffer.frag.glsl", "forward.frag.glsl"):
             for textured in (False, True):
-                self.shaders.program("geometry.vert.glsl", fragment, {"HAS_TEXTURE": textured})
+                for extra in modes:
+                    self.shaders.program("geometry.vert.glsl", fragment,
+                                         {"HAS_TEXTURE": textured, **extra})
         self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
         self.shaders.compute("lighting.comp.glsl")
         for fragment in ("lighting.frag.glsl", "present.frag.glsl", "overlay.frag.glsl"):
@@ -92,13 +101,32 @@ class Renderer:
         ctx = FrameContext(
             eyes=frame.eyes, targets=self.targets, scene=self.gpu_scene or self._empty,
             light_scale=r.brightness, ambient=r.ambient, exposure=r.exposure, out=out,
-            out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed)
+            out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed,
+            levels=frame.levels if self.settings.tcr.enabled else None,
+            tcr_mode=self.settings.tcr.mode, tint=self.settings.tcr.tint)
+        scene = ctx.scene
+        if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
+            scene.streamer.update(finest_per_texture(scene, ctx.levels))
+        else:
+            ctx.levels = None
+            scene.streamer.update([0] * len(scene.streamer.resident))
         for p in self.passes:
             try:
                 p.run(ctx)
             except Exception as exc:  # noqa: BLE001 - one bad pass must not kill the app
                 self._log_once(p.name, exc)
         self.frames += 1
+
+    def object_ids(self, frame: FrameInput) -> list[np.ndarray]:
+        """Mesh index under each pixel of each eye ((H, W) int32, row 0 at the top; -1: none)."""
+        eye = frame.eyes[0]
+        self._ensure_targets(eye.width, eye.height)
+        ctx = FrameContext(
+            eyes=frame.eyes, targets=self.targets, scene=self.gpu_scene or self._empty,
+            light_scale=0.0, ambient=0.0, exposure=1.0, out=self.ctx.screen,
+            out_origin=(0, 0), gaze=frame.gaze, gaze_fixed=frame.gaze_fixed)
+        self.ids.run(ctx)
+        return self.ids.result
 
     def _log_once(self, name: str, exc: Exception) -> None:
         key = f"{name}: {type(exc).__name__}: {exc}"
@@ -129,7 +157,7 @@ class Renderer:
         return np.flipud(data.astype(np.float32))
 
     def release(self) -> None:
-        for p in self.passes:
+        for p in (*self.passes, self.ids):
             p.release()
         for t in self.targets:
             t.release()
@@ -137,3 +165,13 @@ class Renderer:
             self.gpu_scene.release()
         self._empty.release()
         self.shaders.release()
+
+
+def finest_per_texture(scene: GpuScene, levels: list[int]) -> list[int]:
+    """The finest level any mesh needs from each texture; -1 where no mesh uses it."""
+    finest = [-1] * len(scene.streamer.resident)
+    for mesh, level in zip(scene.meshes, levels):
+        if mesh.texture is not None:
+            cur = finest[mesh.texture]
+            finest[mesh.texture] = level if cur < 0 else min(cur, level)
+    return finest

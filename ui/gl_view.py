@@ -109,6 +109,9 @@ class StereoView(QOpenGLWidget):
         self._play_frame = 0
         self.update()
 
+    def texture_resident_bytes(self) -> int:
+        return self.renderer.texture_resident_bytes() if self.renderer is not None else 0
+
     def release_gl(self) -> None:
         if self.renderer is not None:
             self.makeCurrent()
@@ -134,8 +137,7 @@ class StereoView(QOpenGLWidget):
                 s.walker.yaw_deg = (s.walker.yaw_deg + turn * TURN_DEG_S * dt) % 360.0
             if fwd or strafe or rise:
                 s.walker.step(fwd, strafe, rise, dt)
-            s.gaze.update(dt, s.settings.stereo.fov_deg)
-            s.observe_motion(dt)
+            s.tick(dt)
             s.time += dt
         if self.is_recording:
             self.recording.append(s.current_key())
@@ -175,13 +177,13 @@ class StereoView(QOpenGLWidget):
         if event.button() == Qt.MouseButton.LeftButton:
             self._set_gaze_from(event.position())
             self.session.gaze.button_held = True
-            self.session.gaze.update(0.0, self.session.settings.stereo.fov_deg)
+            self.session.tick(0.0)
         elif event.button() in (Qt.MouseButton.RightButton, Qt.MouseButton.MiddleButton):
             self._drag_from = event.position()
 
     def mouseReleaseEvent(self, event: QMouseEvent) -> None:
         if event.button() == Qt.MouseButton.LeftButton:
             self.session.gaze.button_held = False
-            self.session.gaze.update(0.0, self.session.settings.stereo.fov_deg)
+            self.session.tick(0.0)
         elif event.button() in (Qt.MouseButton.RightButton, Qt.MouseButton.MiddleButton):
             self._drag_from = None

@@ -36,8 +36,10 @@ from app.paths import CameraPath
 from app.scene import Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings, SettingsError
+from app.tcr import phase_name, terms_from_settings
 from ui.gl_view import StereoView, default_format
 from ui.panels import EvaluationBar, SettingsPanel
+from ui.tcr_panel import TcrPanel
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +70,10 @@ class MainWindow(QMainWindow):
         self.normal_mode = False
 
         self.panel = SettingsPanel(self.settings, ("stereo", "render", "navigation", "gaze"))
+        self.tcr_panel = TcrPanel(self.session, on_change=self._setting_changed)
+        self.panel.on_change = self._setting_changed
         tabs = QTabWidget()
+        tabs.addTab(self.tcr_panel, "TCR")
         tabs.addTab(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)
         self.dock.setObjectName("evaluation-panels")
@@ -257,6 +262,15 @@ class MainWindow(QMainWindow):
         for key in loaded.keys():  # in place: the session, renderer and panels share it
             self.settings.set(key, loaded.get(key))
         self.panel.refresh()
+        self.tcr_panel.refresh()
+        self._setting_changed("")
+
+    def _setting_changed(self, key: str) -> None:
+        """Keep both panels showing the one model, and redraw."""
+        if key.startswith(("render.", "tcr.")):
+            self.panel.refresh()
+            self.tcr_panel.refresh()
+        self.view.update()
 
     # -- viewpoints and paths ------------------------------------------------------------------
     def _viewpoints_file(self) -> Path:
@@ -331,7 +345,11 @@ class MainWindow(QMainWindow):
     def _poll(self) -> dict:
         s = self.session
         scene = s.scene
-        return {"state": s.state, "fps": self.view.timer.fps, "gazed": s.gazed_object(),
+        t = self.settings.tcr
+        phase = phase_name(terms_from_settings(t)) if t.enabled else "TCR off"
+        return {"state": s.state, "phase": phase, "fps": self.view.timer.fps,
+                "gazed": s.gazed_object(),
+                "resident_mb": self.view.texture_resident_bytes() / 1e6,
                 "scene": f"{scene.name} · {scene.triangle_count:,} tris" if scene else ""}
 
     def closeEvent(self, event) -> None:

@@ -106,8 +106,9 @@ class EvaluationBar(QWidget):
         self.poll = poll
         layout = QHBoxLayout(self)
         layout.setContentsMargins(8, 2, 8, 2)
-        self.labels = {name: QLabel() for name in ("state", "fps", "gazed", "scene")}
-        for name in ("state", "fps", "gazed", "scene"):
+        names = ("phase", "state", "fps", "resident", "gazed", "scene")
+        self.labels = {name: QLabel() for name in names}
+        for name in names:
             self.labels[name].setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
             layout.addWidget(self.labels[name])
             layout.addStretch(1)
@@ -118,7 +119,9 @@ class EvaluationBar(QWidget):
     def refresh(self) -> None:
         info = self.poll()
         state = info.get("state", 0)
+        self.labels["phase"].setText(f"phase: {info.get('phase', '')}")
         self.labels["state"].setText(f"state {state}: {self.STATE_NAMES.get(state, '')}")
+        self.labels["resident"].setText(f"textures {info.get('resident_mb', 0.0):.2f} MB")
         self.labels["fps"].setText(f"{info.get('fps', 0.0):.1f} fps")
         self.labels["gazed"].setText(f"gaze on: {info.get('gazed') or '-'}")
         self.labels["scene"].setText(info.get("scene", ""))

@@ -1,0 +1,185 @@
+"""TCR control panel: term toggles and presets, mode, dimmer, state diagram, level legend.
+
+Built on the settings model (every control writes through ``Settings.set``) and polled at 4 Hz
+for the live parts (the lit state, the gazed object's level and why).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from PyQt6.QtCore import QRectF, Qt, QTimer
+from PyQt6.QtGui import QColor, QPainter, QPen
+from PyQt6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDoubleSpinBox,
+    QFormLayout,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QSlider,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.session import Session
+from app.tcr import PRESETS, phase_name, terms_from_settings
+from render.passes import LEVEL_TINTS
+
+STATES = ((0, "still", "gaze moves", "d, l"), (1, "moving", "gaze moves", "d, v, l"),
+          (2, "still", "gaze fixed", "d, g, l"), (3, "moving", "gaze fixed", "d, v, g, l"))
+
+
+class StateDiagram(QWidget):
+    """The paper's four states in a 2x2 grid; the current one is lit."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.state = 0
+        self.setMinimumSize(240, 110)
+
+    def set_state(self, state: int) -> None:
+        if state != self.state:
+            self.state = state
+            self.update()
+
+    def paintEvent(self, event) -> None:
+        p = QPainter(self)
+        p.setRenderHint(QPainter.RenderHint.Antialiasing)
+        w, h = self.width() / 2, self.height() / 2
+        for state, view, gaze, params in STATES:
+            col, row = state % 2, state // 2
+            r = QRectF(col * w + 3, row * h + 3, w - 6, h - 6)
+            lit = state == self.state
+            p.setBrush(QColor(255, 140, 40) if lit else QColor(60, 60, 66))
+            p.setPen(QPen(QColor(30, 30, 30), 1))
+            p.drawRoundedRect(r, 6, 6)
+            p.setPen(QColor(0, 0, 0) if lit else QColor(220, 220, 220))
+            p.drawText(r, Qt.AlignmentFlag.AlignCenter,
+                       f"state {state}\nviewpoint {view}, {gaze}\n{params}")
+        p.end()
+
+
+class TcrPanel(QWidget):
+    def __init__(self, session: Session, on_change: Callable[[str], None] | None = None,
+                 parent=None) -> None:
+        super().__init__(parent)
+        self.session = session
+        self.settings = session.settings
+        self.on_change = on_change
+        layout = QVBoxLayout(self)
+
+        box = QGroupBox("Adaptive texture mapping")
+        form = QFormLayout(box)
+        self.enabled = QCheckBox("on")
+        self.enabled.toggled.connect(lambda v: self._set("tcr.enabled", v))
+        form.addRow("TCR", self.enabled)
+        self.preset = QComboBox()
+        self.preset.addItems(["psychology", "ergonomics", "custom"])
+        self.preset.currentTextChanged.connect(lambda v: self._set("tcr.preset", v))
+        form.addRow("preset", self.preset)
+        terms_row = QHBoxLayout()
+        self.terms: dict[str, QCheckBox] = {}
+        for term in "dvgl":
+            cb = QCheckBox(term)
+            cb.toggled.connect(lambda v, t=term: self._set_term(t, v))
+            self.terms[term] = cb
+            terms_row.addWidget(cb)
+        form.addRow("terms", terms_row)
+        self.mode = QComboBox()
+        self.mode.addItems(["clamp", "paper"])
+        self.mode.currentTextChanged.connect(lambda v: self._set("tcr.mode", v))
+        form.addRow("sampling", self.mode)
+        self.f = QDoubleSpinBox()
+        self.f.setRange(0.01, 100.0)
+        self.f.setDecimals(2)
+        self.f.setSingleStep(0.1)
+        self.f.valueChanged.connect(lambda v: self._set("tcr.f_m", v))
+        form.addRow("eye-screen f (m)", self.f)
+        self.dimmer = QSlider(Qt.Orientation.Horizontal)
+        self.dimmer.setRange(0, 100)
+        self.dimmer.valueChanged.connect(lambda v: self._set("render.brightness", v / 100.0))
+        form.addRow("brightness", self.dimmer)
+        self.tint = QCheckBox("tint objects by level")
+        self.tint.toggled.connect(lambda v: self._set("tcr.tint", v))
+        form.addRow("overlay", self.tint)
+        layout.addWidget(box)
+
+        legend = QGroupBox("Level legend")
+        grid = QGridLayout(legend)
+        for level, colour in enumerate(LEVEL_TINTS):
+            swatch = QLabel()
+            swatch.setFixedSize(18, 14)
+            r, g, b = (int(c * 255) for c in colour)
+            swatch.setStyleSheet(f"background: rgb({r},{g},{b}); border: 1px solid #444")
+            grid.addWidget(swatch, level // 4, (level % 4) * 2)
+            text = "0 (finest)" if level == 0 else (f"{level}+" if level == len(LEVEL_TINTS) - 1
+                                                    else str(level))
+            grid.addWidget(QLabel(text), level // 4, (level % 4) * 2 + 1)
+        layout.addWidget(legend)
+
+        self.diagram = StateDiagram()
+        layout.addWidget(self.diagram)
+        self.phase = QLabel()
+        self.readout = QLabel()
+        self.readout.setWordWrap(True)
+        self.readout.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        layout.addWidget(self.phase)
+        layout.addWidget(self.readout)
+        layout.addStretch(1)
+        self.refresh()
+        self.timer = QTimer(self)
+        self.timer.timeout.connect(self.poll)
+        self.timer.start(250)
+
+    def _set(self, key: str, value: object) -> None:
+        self.settings.set(key, value)
+        self.refresh()
+        if self.on_change:
+            self.on_change(key)
+
+    def _set_term(self, term: str, value: bool) -> None:
+        t = self.settings.tcr
+        if t.preset != "custom":
+            # Editing a term of a preset starts a custom set from that preset's terms.
+            base = PRESETS[t.preset]
+            for name in "dvgl":
+                self.settings.set(f"tcr.use_{name}", getattr(base, name))
+            self.settings.set("tcr.preset", "custom")
+        self._set(f"tcr.use_{term}", value)
+
+    def refresh(self) -> None:
+        """Show the model's values (after a change here, a preset load, or the CLI)."""
+        t = self.settings.tcr
+        terms = terms_from_settings(t)
+        widgets = (self.enabled, self.preset, self.mode, self.f, self.dimmer, self.tint,
+                   *self.terms.values())
+        for w in widgets:
+            w.blockSignals(True)
+        self.enabled.setChecked(t.enabled)
+        self.preset.setCurrentText(t.preset)
+        self.mode.setCurrentText(t.mode)
+        self.f.setValue(t.f_m)
+        self.dimmer.setValue(round(min(self.settings.render.brightness, 1.0) * 100))
+        self.tint.setChecked(t.tint)
+        for name, cb in self.terms.items():
+            cb.setChecked(getattr(terms, name))
+        for w in widgets:
+            w.blockSignals(False)
+
+    def poll(self) -> None:
+        s = self.session
+        self.diagram.set_state(s.state)
+        t = self.settings.tcr
+        phase = phase_name(terms_from_settings(t)) if t.enabled else "TCR off"
+        self.phase.setText(f"phase: {phase}   state: {s.state}")
+        reason = s.reason(s.gazed)
+        name = s.gazed_object()
+        if reason is None or name is None:
+            self.readout.setText("gaze on: nothing")
+        elif not t.enabled:
+            self.readout.setText(f"{name}: level 0 (TCR off)")
+        else:
+            self.readout.setText(reason.describe(name))
