@@ -42,7 +42,8 @@ class RenderSettings:
     path: str = _opt("deferred", "rendering path", choices=("deferred", "forward"))
     lighting: str = _opt("compute", "deferred lighting stage", choices=("compute", "fragment"))
     exposure: float = _opt(1.0, "exposure before tone mapping", lo=0.0, hi=64.0)
-    brightness: float = _opt(1.0, "scales every light (1 = as authored)", lo=0.0, hi=16.0)
+    brightness: float = _opt(1.0, "dimmer: scales every light and the ambient (1 = as authored)",
+                             lo=0.0, hi=16.0)
     ambient: float = _opt(0.06, "constant ambient light", lo=0.0, hi=4.0)
     overlay: bool = _opt(True, "draw the fps overlay in the view")
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.

@@ -471,19 +471,21 @@ class TcrController:
         self.levels = np.fromiter((r.level for r in self.reasons), np.int32, count)
         return self.levels.copy()
 
-    def finest_per_texture(self, texture_of_object: list[int | None], n_textures: int) -> list[int]:
-        """The finest (smallest) level any object currently uses, per texture; -1 if unused.
 
-        "Unused" is -1 rather than a guessed level because what to do with a texture no object
-        needs (keep it, drop its fine levels, evict it) is the caller's policy, not this
-        class's. Objects without a texture (None) or with an index outside [0, n_textures) are
-        skipped; before the first :meth:`update` every object counts as level 0.
-        """
-        finest = [-1] * max(0, int(n_textures))
-        for obj, tex in enumerate(texture_of_object[: len(self.levels)]):
-            if tex is None or not 0 <= tex < len(finest):
-                continue
-            level = int(self.levels[obj])
-            if finest[tex] < 0 or level < finest[tex]:
-                finest[tex] = level
-        return finest
+def finest_per_texture(levels: list[int] | np.ndarray, texture_of_object: list[int | None],
+                       n_textures: int) -> list[int]:
+    """The finest (smallest) level any object uses, per texture; -1 if no object uses it.
+
+    "Unused" is -1 rather than a guessed level because what to do with a texture no object
+    needs (keep it, drop its fine levels, evict it) is the caller's policy. Objects without a
+    texture (None) or with an index outside [0, n_textures) are skipped, as are objects beyond
+    ``levels``; a negative level counts as 0 (finest).
+    """
+    finest = [-1] * max(0, int(n_textures))
+    for level, tex in zip(levels, texture_of_object):
+        if tex is None or not 0 <= tex < len(finest):
+            continue
+        level = max(0, int(level))
+        if finest[tex] < 0 or level < finest[tex]:
+            finest[tex] = level
+    return finest

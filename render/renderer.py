@@ -15,6 +15,7 @@ import numpy as np
 from app.frame import FrameInput
 from app.scene import Scene
 from app.settings import Settings
+from app.tcr import finest_per_texture
 from render.gpu_scene import GpuScene
 from render.passes import (
     EmissivePass,
@@ -100,13 +101,14 @@ class Renderer:
         self.overlay.show_text = r.overlay
         ctx = FrameContext(
             eyes=frame.eyes, targets=self.targets, scene=self.gpu_scene or self._empty,
-            light_scale=r.brightness, ambient=r.ambient, exposure=r.exposure, out=out,
-            out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed,
+            light_scale=r.brightness, ambient=r.ambient * r.brightness, exposure=r.exposure,
+            out=out, out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed,
             levels=frame.levels if self.settings.tcr.enabled else None,
             tcr_mode=self.settings.tcr.mode, tint=self.settings.tcr.tint)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
-            scene.streamer.update(finest_per_texture(scene, ctx.levels))
+            scene.streamer.update(finest_per_texture(
+                ctx.levels, [m.texture for m in scene.meshes], len(scene.streamer.resident)))
         else:
             ctx.levels = None
             scene.streamer.update([0] * len(scene.streamer.resident))
@@ -166,12 +168,3 @@ class Renderer:
         self._empty.release()
         self.shaders.release()
 
-
-def finest_per_texture(scene: GpuScene, levels: list[int]) -> list[int]:
-    """The finest level any mesh needs from each texture; -1 where no mesh uses it."""
-    finest = [-1] * len(scene.streamer.resident)
-    for mesh, level in zip(scene.meshes, levels):
-        if mesh.texture is not None:
-            cur = finest[mesh.texture]
-            finest[mesh.texture] = level if cur < 0 else min(cur, level)
-    return finest

@@ -130,3 +130,57 @@ def test_screenshot_and_viewpoint_are_saved(window, tmp_path):
     assert vp_actions
     vp_actions[0].trigger()
     np.testing.assert_allclose(window.session.walker.position, [0.0, 1.6, 0.0], atol=1e-9)
+
+
+def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, qtbot):
+    panel, s, session = window.tcr_panel, window.settings, window.session
+    # The quad (2 m away: level 1 by distance) fills the left eye's middle; a point inside its
+    # white quadrant, beside where the gaze marker will be.
+    white = (VIEW_H // 2 + 30, VIEW_W // 4 + 30)
+
+    def shot_after(level: int) -> np.ndarray:
+        qtbot.waitUntil(lambda: session.levels == [level], timeout=5000)
+        return grab(window)
+
+    before = grab(window)
+    panel.enabled.setChecked(True)
+    panel.tint.setChecked(True)
+    assert s.tcr.enabled and s.tcr.tint and s.tcr.preset == "ergonomics"
+    tinted = shot_after(1)
+    assert np.abs(tinted.astype(int) - before.astype(int)).mean() > 10
+    r, g, b = tinted[white].astype(int)
+    assert b > r + 40, (r, g, b)  # level 1's legend colour is blue
+
+    # Psychology: the held gaze on the quad takes one level off (1 -> 0: not tinted).
+    panel.preset.setCurrentText("psychology")
+    assert s.tcr.preset == "psychology"
+    assert [panel.terms[t].isChecked() for t in "dvgl"] == [True, False, True, True]
+    pos = QPoint(VIEW_W // 4, VIEW_H // 2)
+    send_mouse(window.view, QMouseEvent.Type.MouseButtonPress, pos, Qt.MouseButton.LeftButton)
+    gazed = shot_after(0)
+    r, g, b = gazed[white].astype(int)
+    assert abs(b - r) < 30, (r, g, b)  # the white quadrant, untinted
+    # Ergonomics ignores the gaze: back to level 1.
+    panel.preset.setCurrentText("ergonomics")
+    shot_after(1)
+    send_mouse(window.view, QMouseEvent.Type.MouseButtonRelease, pos, Qt.MouseButton.LeftButton)
+
+    # Editing a term of a preset makes a custom set; the dimmer feeds l and darkens the scene.
+    panel.terms["v"].setChecked(False)
+    assert s.tcr.preset == "custom" and not s.tcr.use_v and s.tcr.use_d and s.tcr.use_l
+    assert panel.preset.currentText() == "custom"
+    panel.tint.setChecked(False)
+    bright = shot_after(1)
+    panel.dimmer.setValue(50)  # half the brightness: l = +1
+    assert s.render.brightness == pytest.approx(0.5)
+    dim = shot_after(2)  # = n, the 4x4 texture's coarsest level
+    assert np.abs(dim.astype(int) - bright.astype(int)).mean() > 5
+    panel.enabled.setChecked(False)
+    assert not s.tcr.enabled
+    dim_full = shot_after(0)
+    panel.dimmer.setValue(100)
+    bright_full = shot_after(0)
+    quad = (slice(VIEW_H // 2 - 50, VIEW_H // 2 + 50), slice(VIEW_W // 4 - 50, VIEW_W // 4 + 50))
+    # Half the light: the quad is darker by 15+ of 255 levels everywhere on average (the tone
+    # curve's shoulder keeps it from halving on screen).
+    assert dim_full[quad].mean() < bright_full[quad].mean() - 15

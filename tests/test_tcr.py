@@ -25,6 +25,7 @@ from app.tcr import (
     brightness_term,
     build_pyramid,
     distance_term,
+    finest_per_texture,
     level_bytes,
     level_for,
     phase_name,
@@ -512,9 +513,11 @@ def test_controller_broken_boxes() -> None:
 
 def test_finest_per_texture() -> None:
     c = _controller()
-    assert c.finest_per_texture([0, 0, None, 1], 3) == [0, 0, -1]  # before any update: level 0
-    c.update(EYE, None, False, False, 1.0, TcrSettings(enabled=True))  # levels [2, 6, 0, 0]
-    assert c.finest_per_texture([0, 0, None, 1], 3) == [2, 0, -1]
-    assert c.finest_per_texture([1, 0, 5, -1], 2) == [6, 2]  # out-of-range textures skipped
-    assert c.finest_per_texture([None] * 4, 2) == [-1, -1]
-    assert c.finest_per_texture([0, 0, 0, 0], 0) == []
+    c.update(EYE, None, False, False, 1.0, TcrSettings(enabled=True))
+    assert c.levels.tolist() == [2, 6, 0, 0]
+    assert finest_per_texture(c.levels, [0, 0, None, 1], 3) == [2, 0, -1]
+    assert finest_per_texture(c.levels, [1, 0, 5, -1], 2) == [6, 2]  # out-of-range skipped
+    assert finest_per_texture(c.levels, [None] * 4, 2) == [-1, -1]
+    assert finest_per_texture(c.levels, [0, 0, 0, 0], 0) == []
+    assert finest_per_texture([-3, 4], [0, 0], 1) == [0]  # a negative level counts as finest
+    assert finest_per_texture([1], [0, 0, 0], 1) == [1]  # objects beyond the levels skipped

@@ -33,7 +33,12 @@ vec3 surface_albedo() {
 #endif
 #endif
 #ifdef TCR_TINT
-    c = mix(c, u_tint, 0.55);
+    // Paint the level's colour with the surface's luminance kept, so the texture stays
+    // readable and a brightly lit surface does not wash the colour out to white. Level 0
+    // (tint white) keeps its own colours.
+    if (u_tint != vec3(1.0)) {
+        c = u_tint * (0.25 + 0.75 * dot(c, vec3(0.2126, 0.7152, 0.0722)));
+    }
 #endif
     return clamp(c, vec3(0.0), vec3(1.0));
 }
