@@ -109,7 +109,11 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
             samples.append(host.renderer.shaded_samples())
             resident.append(host.renderer.texture_resident_bytes())
             gazed = session.gazed
-            record = {"frame": i, "ms": dt, "state": session.state, "gazed":
+            distance = (float(session.tcr.distances[gazed]) if gazed is not None
+                        and session.tcr is not None and len(session.tcr.distances) > gazed
+                        else None)
+            record = {"gazed_distance_m": None if distance is None else round(distance, 2),
+                      "frame": i, "ms": dt, "state": session.state, "gazed":
                       session.gazed_object(), "gazed_level": (session.levels[gazed] if (
                           settings.tcr.enabled and session.levels and gazed is not None)
                           else 0), "resident_bytes": resident[-1]}
@@ -154,6 +158,8 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
         "shaded_samples": int(np.median(samples)) if samples else 0,
         "by_state": _group(per_frame, "state"),
         "by_gazed_level": _group(per_frame, "gazed_level"),
+        "by_gazed_distance_m": _group([r for r in per_frame if r["gazed_distance_m"] is not None],
+                                      "gazed_distance_m", max_groups=40),
         "settings": settings.to_dict(),
         "errors": errors,
         "per_frame": per_frame,
@@ -172,9 +178,14 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
     return result
 
 
-def _group(records: list[dict], key: str) -> dict[str, dict]:
+def _group(records: list[dict], key: str, max_groups: int = 0) -> dict[str, dict]:
+    """Median frame time per value of ``key``; {} when there are more than ``max_groups``
+    values (0: no limit), e.g. distances along a continuous walk."""
     out: dict[str, dict] = {}
-    for value in sorted({r[key] for r in records}, key=str):
+    values = {r[key] for r in records}
+    if max_groups and len(values) > max_groups:
+        return out
+    for value in sorted(values, key=lambda v: (isinstance(v, str), v)):
         ms = [r["ms"] for r in records if r[key] == value]
         med = summarize(ms)["median"]
         out[str(value)] = {"frames": len(ms), "frame_ms_median": med,

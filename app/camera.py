@@ -135,6 +135,26 @@ class StereoCamera:
                                  height, near, far))
         return views
 
+    def gaze_ray(self, u: float, v: float, width: int, height: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The cyclopean gaze ray (origin between the eyes, unit direction) for the point (u, v)
+        that the gaze marks in both eye viewports.
+
+        Both eyes' rays through (u, v) meet the convergence plane at the same point (the
+        off-axis frusta share their window there), so the eyes look at that point; the ray
+        from between the eyes through it is the gaze. A ray from one eye would sweep sideways
+        by half the IPD per convergence distance and miss small far objects.
+        """
+        width, height = max(1, int(width)), max(1, int(height))
+        near, far = self.clip_planes()
+        fov = math.radians(min(170.0, max(1.0, _finite(self.settings.fov_deg, 95.0))))
+        top = near * math.tan(fov / 2)
+        half_w = top * width / height
+        right, up, fwd = orientation(self.yaw_deg, self.pitch_deg)
+        centre = EyeView(-1, self.position.copy(), look_matrix(self.position, right, up, fwd),
+                         frustum(-half_w, half_w, -top, top, near, far), width, height, near, far)
+        return centre.position, centre.ray(u, v)
+
     def horizontal_fov_deg(self, width: int, height: int) -> float:
         fov = math.radians(self.settings.fov_deg)
         return math.degrees(2 * math.atan(math.tan(fov / 2) * width / max(1, height)))

@@ -49,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--warmup", type=int, default=5, help="frames rendered before timing")
     b.add_argument("--compare-every", type=int, default=0, metavar="K",
                    help="every K-th frame, measure PSNR/SSIM/FLIP against full quality")
+    rep = sub.add_parser("report", help="benchmark JSON files as one markdown table")
+    rep.add_argument("files", nargs="+", help="JSON files written by vrpreview bench")
+    rep.add_argument("--group", action="append", default=[], metavar="KEY",
+                     help="also list fps per group: by_state, by_gazed_level, "
+                          "by_gazed_distance_m (repeatable)")
     d = sub.add_parser("demo", help="walk the default path headless: screenshots + summary")
     _common(d)
     d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
@@ -102,6 +107,11 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args: argparse.Namespace, settings: Settings, path) -> int:
     from app import bench
 
+    if args.command == "report":
+        from app.report import report
+
+        print(report(args.files, tuple(args.group)))
+        return 0
     if args.command == "render":
         size = bench.parse_size(args.size)
         bench.render_frame(args.scene, args.out, size, args.frame, settings, path)

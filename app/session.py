@@ -143,14 +143,13 @@ class Session:
 
     # -- queries -------------------------------------------------------------------------------
     def gazed_index(self, eye_width: int = 640, eye_height: int = 720) -> int | None:
-        """Index of the mesh hit by the left eye's gaze ray, or None."""
+        """Index of the mesh hit by the (cyclopean) gaze ray, or None."""
         if self.scene is None or self.caster is None:
             return None
         w = self.walker
         self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
-        eye = self.camera.eyes(eye_width, eye_height)[0]
         g = self.gaze.state
-        dist, owner = self.caster.cast(eye.position, eye.ray(g.u, g.v))
+        dist, owner = self.caster.cast(*self.camera.gaze_ray(g.u, g.v, eye_width, eye_height))
         if not math.isfinite(dist) or owner < 0:
             return None
         return int(owner)

@@ -64,3 +64,22 @@ def test_extreme_poses_give_finite_matrices(value):
         assert np.isfinite(eye.view).all() and np.isfinite(eye.projection).all()
         assert np.isfinite(eye.inverse_view_projection).all()
         assert np.isfinite(eye.ray(value, value)).all()
+
+
+def test_gaze_ray_meets_both_eye_rays_on_the_convergence_plane() -> None:
+    s = StereoSettings(ipd_mm=64.0, convergence_m=2.0)
+    cam = StereoCamera(s)
+    cam.set_pose((1.0, 1.6, -3.0), 30.0, 10.0)
+    for u, v in ((0.5, 0.5), (0.2, 0.7), (0.9, 0.1)):
+        origin, d = cam.gaze_ray(u, v, 640, 720)
+        np.testing.assert_allclose(origin, cam.position)
+        _, _, fwd = orientation(cam.yaw_deg, cam.pitch_deg)
+        t = 2.0 / float(d @ fwd)
+        target = origin + d * t  # on the convergence plane (2 m ahead along the view axis)
+        for eye in cam.eyes(640, 720):
+            r = eye.ray(u, v)
+            te = float((target - eye.position) @ fwd) / float(r @ fwd)
+            np.testing.assert_allclose(eye.position + r * te, target, atol=1e-9)
+    # Straight ahead at the centre: a far object on the axis is hit, whatever the IPD.
+    cam.set_pose((0.0, 1.6, 0.0), 0.0, 0.0)
+    np.testing.assert_allclose(cam.gaze_ray(0.5, 0.5, 640, 720)[1], [0, 0, -1], atol=1e-12)
