@@ -90,12 +90,49 @@ class TcrSettings:
 
 
 @dataclass
+class CpsSettings:
+    """Coarse pixel shading against VR sickness (CPS paper, SPEC C) and the mitigation modes."""
+
+    mode: str = _opt("none-fragment", "mitigation: none-fragment, none-compute (full-rate "
+                     "lighting), black-mask, blur-mask (periphery darkened / blurred where "
+                     "detail would drop) or cps (coarse shading there)",
+                     choices=("none-fragment", "none-compute", "black-mask", "blur-mask", "cps"))
+    max_level: int = _opt(4, "coarsest block allowed: 2^max_level pixels square (0-5)", lo=0, hi=5)
+    fovea_deg: float = _opt(10.0, "full detail within this angle of the gaze (degrees)",
+                            lo=0.0, hi=180.0)
+    deg_per_level: float = _opt(6.0, "falloff: one level coarser per this many degrees "
+                                "beyond the fovea", lo=0.1, hi=180.0)
+    near_m: float = _opt(1.0, "edge ray hit this near or nearer: that side may go to max_level "
+                         "(m)", lo=0.0, hi=1000.0)
+    far_m: float = _opt(6.0, "edge ray hit this far or farther (or none): no reduction on that "
+                        "side (m)", lo=0.0, hi=1000.0)
+    rays_per_side: int = _opt(5, "edge rays per side (left, right, bottom) and eye", lo=1, hi=64)
+    pipeline: str = _opt("fragment", "where coarse lighting runs: fragment (per level a pass "
+                         "at 1/2^s resolution, then a composite) or compute (the paper's)",
+                         choices=("fragment", "compute"))
+    dispatch: str = _opt("multi", "compute: one dispatch per level (multi) or one in which a "
+                         "thread owns a 32x32 tile (single)", choices=("multi", "single"))
+    filter: str = _opt("hierarchical", "reconstruction of coarse blocks: none, bilinear "
+                       "(ordinary) or hierarchical (the paper's)",
+                       choices=("none", "bilinear", "hierarchical"))
+    temporal: bool = _opt(False, "alternating temporal filter: the eyes swap strong and weak "
+                          "reduction each frame and blend with their previous frame")
+    reproject: bool = _opt(True, "temporal: reproject the history with depth and the previous "
+                           "camera, rejecting disocclusions")
+    history_weight: float = _opt(0.7, "temporal: weight of the finer of the two images when "
+                                 "blending (0.5-1)", lo=0.5, hi=1.0)
+    visualize: bool = _opt(False, "tint pixels by detail level (finest unpainted, then blue, "
+                           "cyan, green, yellow, red) and mark the edge-ray hits")
+
+
+@dataclass
 class Settings:
     stereo: StereoSettings = field(default_factory=StereoSettings)
     render: RenderSettings = field(default_factory=RenderSettings)
     navigation: NavigationSettings = field(default_factory=NavigationSettings)
     gaze: GazeSettings = field(default_factory=GazeSettings)
     tcr: TcrSettings = field(default_factory=TcrSettings)
+    cps: CpsSettings = field(default_factory=CpsSettings)
 
     # -- dotted-key access -------------------------------------------------------------------
     def _locate(self, key: str) -> tuple[Any, dataclasses.Field[Any]]:
