@@ -106,7 +106,7 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
             frame_ms.append(dt)
             for name, ms in host.renderer.pass_ms().items():
                 pass_ms.setdefault(name, []).append(ms)
-            samples.append(host.renderer.shaded_samples())
+            samples.append(host.shaded_samples())
             resident.append(host.renderer.texture_resident_bytes())
             gazed = session.gazed
             distance = (float(session.tcr.distances[gazed]) if gazed is not None

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from app.camera import EyeView
 
 
@@ -13,3 +15,7 @@ class FrameInput:
     gaze: tuple[float, float] = (0.5, 0.5)  # normalised in each eye viewport, (0, 0) top-left
     gaze_fixed: bool = False
     levels: list[int] | None = None  # TCR pyramid level per mesh; None: full quality
+    # CPS: per eye the side caps (left, right, bottom) from the edge rays, and the rays' hit
+    # points in world space (drawn with the detail visualisation). None: no caps (all 0).
+    cps_caps: list[tuple[float, float, float]] | None = None
+    edge_hits: list[np.ndarray] | None = None

@@ -93,10 +93,11 @@ class TcrSettings:
 class CpsSettings:
     """Coarse pixel shading against VR sickness (CPS paper, SPEC C) and the mitigation modes."""
 
-    mode: str = _opt("none-fragment", "mitigation: none-fragment, none-compute (full-rate "
-                     "lighting), black-mask, blur-mask (periphery darkened / blurred where "
-                     "detail would drop) or cps (coarse shading there)",
-                     choices=("none-fragment", "none-compute", "black-mask", "blur-mask", "cps"))
+    mode: str = _opt("none", "mitigation: none (full-rate lighting), black-mask or blur-mask "
+                     "(periphery darkened / blurred where detail would drop) or cps (coarse "
+                     "shading there); the lighting runs where render.lighting says (compute "
+                     "is the paper's, fragment keeps it in the graphics pipeline); deferred "
+                     "path only", choices=("none", "black-mask", "blur-mask", "cps"))
     max_level: int = _opt(4, "coarsest block allowed: 2^max_level pixels square (0-5)", lo=0, hi=5)
     fovea_deg: float = _opt(10.0, "full detail within this angle of the gaze (degrees)",
                             lo=0.0, hi=180.0)
@@ -107,9 +108,6 @@ class CpsSettings:
     far_m: float = _opt(6.0, "edge ray hit this far or farther (or none): no reduction on that "
                         "side (m)", lo=0.0, hi=1000.0)
     rays_per_side: int = _opt(5, "edge rays per side (left, right, bottom) and eye", lo=1, hi=64)
-    pipeline: str = _opt("fragment", "where coarse lighting runs: fragment (per level a pass "
-                         "at 1/2^s resolution, then a composite) or compute (the paper's)",
-                         choices=("fragment", "compute"))
     dispatch: str = _opt("multi", "compute: one dispatch per level (multi) or one in which a "
                          "thread owns a 32x32 tile (single)", choices=("multi", "single"))
     filter: str = _opt("hierarchical", "reconstruction of coarse blocks: none, bilinear "

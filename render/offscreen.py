@@ -58,6 +58,14 @@ class OffscreenHost:
         with self.ctx:
             return self.renderer.object_ids(frame)
 
+    def cps_stats(self) -> dict:
+        with self.ctx:
+            return self.renderer.cps_stats()
+
+    def shaded_samples(self) -> int:
+        with self.ctx:
+            return self.renderer.shaded_samples()
+
     def read_hdr(self, eye: int) -> np.ndarray:
         with self.ctx:
             return self.renderer.read_hdr(eye)

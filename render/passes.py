@@ -41,6 +41,10 @@ class EyeTargets:
             obj.release()
 
 
+# CPS detail visualisation (paper Fig. 2): finest unpainted, then blue, cyan, green, yellow, red.
+CPS_LEVEL_COLOURS = ((1.0, 1.0, 1.0), (0.15, 0.35, 1.0), (0.0, 0.9, 0.9), (0.1, 0.85, 0.1),
+                     (1.0, 0.95, 0.0), (1.0, 0.1, 0.1))
+
 # Level legend for the TCR tint: level 0 unpainted, then blue, cyan, green, yellow, orange, red.
 LEVEL_TINTS = ((1.0, 1.0, 1.0), (0.15, 0.35, 1.0), (0.0, 0.9, 0.9), (0.1, 0.85, 0.1),
                (1.0, 0.95, 0.0), (1.0, 0.55, 0.0), (1.0, 0.1, 0.1))
@@ -67,6 +71,8 @@ class FrameContext:
     levels: list[int] | None = None  # TCR level per mesh (None: full quality)
     tcr_mode: str = "clamp"
     tint: bool = False
+    level_maps: list[moderngl.Texture] | None = None  # CPS detail visualisation, per eye
+    markers: list[list[tuple[int, int]]] | None = None  # per eye, pixels from the bottom-left
 
 
 class RenderPass:
@@ -263,7 +269,11 @@ class PresentPass(RenderPass):
     name = "present"
 
     def execute(self, frame: FrameContext) -> None:
-        prog = self.shaders.program("fullscreen.vert.glsl", "present.frag.glsl")
+        visualize = frame.level_maps is not None
+        prog = self.shaders.program("fullscreen.vert.glsl", "present.frag.glsl",
+                                    {"VISUALIZE": visualize})
+        if visualize:
+            prog["u_levels"].value = 1
         w, h = frame.targets[0].size
         frame.out.use()
         x, y = frame.out_origin
@@ -275,6 +285,8 @@ class PresentPass(RenderPass):
             frame.out.viewport = (*origin, w, h)
             prog["u_origin"].value = origin
             tgt.color.use(0)
+            if visualize:
+                frame.level_maps[index].use(1)
             self.fullscreen(prog)
         frame.out.viewport = (x, y, 2 * w, h)
 
@@ -352,6 +364,11 @@ class OverlayPass(RenderPass):
             self.fullscreen(prog)
         ctx.scissor = None
         ctx.disable(moderngl.BLEND)
+        for e, points in enumerate(frame.markers or []):  # edge-ray hits: small magenta squares
+            for px, py in points:
+                if 0 <= px < w and 0 <= py < h:
+                    frame.out.clear(1.0, 0.0, 1.0, 1.0, viewport=(x0 + e * w + px - 2,
+                                                                 y0 + py - 2, 5, 5))
 
     def release(self) -> None:
         super().release()

@@ -16,6 +16,15 @@ from app.frame import FrameInput
 from app.scene import Scene
 from app.settings import Settings
 from app.tcr import finest_per_texture
+from render.cps import (
+    CpsFilterPass,
+    CpsFrame,
+    CpsLevelPass,
+    CpsLightingPass,
+    CpsMaskPass,
+    CpsState,
+    CpsTemporalPass,
+)
 from render.gpu_scene import GpuScene
 from render.passes import (
     EmissivePass,
@@ -46,8 +55,16 @@ class Renderer:
         self.present = PresentPass(ctx, self.shaders)
         self.overlay = OverlayPass(ctx, self.shaders)
         self.ids = ObjectIdPass(ctx, self.shaders)  # on request, not part of the frame
-        self.passes: list[RenderPass] = [self.gbuffer, self.lighting, self.emissive, self.forward,
-                                         self.present, self.overlay]
+        self.cps = CpsState(ctx)
+        self.cps_levels = CpsLevelPass(ctx, self.shaders, self.cps)
+        self.cps_lighting = CpsLightingPass(ctx, self.shaders, self.cps)
+        self.cps_filter = CpsFilterPass(ctx, self.shaders, self.cps)
+        self.cps_temporal = CpsTemporalPass(ctx, self.shaders, self.cps)
+        self.cps_mask = CpsMaskPass(ctx, self.shaders, self.cps)
+        self.passes: list[RenderPass] = [
+            self.gbuffer, self.cps_levels, self.lighting, self.cps_lighting, self.cps_filter,
+            self.cps_temporal, self.cps_mask, self.emissive, self.forward, self.present,
+            self.overlay]
         self.gpu_scene: GpuScene | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
@@ -97,6 +114,7 @@ class Renderer:
         self.gbuffer.enabled = self.lighting.enabled = self.emissive.enabled = deferred
         self.forward.enabled = not deferred
         self.lighting.stage = r.lighting
+        cps = self._configure_cps(frame, deferred)
         self.overlay.enabled = True
         self.overlay.show_text = r.overlay
         ctx = FrameContext(
@@ -105,6 +123,9 @@ class Renderer:
             out=out, out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed,
             levels=frame.levels if self.settings.tcr.enabled else None,
             tcr_mode=self.settings.tcr.mode, tint=self.settings.tcr.tint)
+        if cps.visualize and self.cps_levels.enabled:
+            ctx.level_maps = [e.levels for e in self.cps.eyes]
+            ctx.markers = _project_hits(frame)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
             scene.streamer.update(finest_per_texture(
@@ -118,6 +139,42 @@ class Renderer:
             except Exception as exc:  # noqa: BLE001 - one bad pass must not kill the app
                 self._log_once(p.name, exc)
         self.frames += 1
+
+    def _configure_cps(self, frame: FrameInput, deferred: bool):
+        """Which CPS passes run this frame (CPS and the masks need the deferred path)."""
+        s = self.settings.cps
+        mode = s.mode if deferred else "none"
+        self.cps.ensure(self.targets)
+        caps = frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
+        self.cps.frame = CpsFrame(s, caps, self.frames, list(frame.edge_hits or []))
+        self.cps.mode = mode
+        coarse = mode == "cps"
+        self.cps_levels.enabled = deferred and (coarse or s.visualize)
+        self.cps.level_maps_valid = self.cps.level_maps_valid and self.cps_levels.enabled
+        self.lighting.enabled = deferred and not coarse
+        self.cps_lighting.enabled = self.cps_filter.enabled = coarse
+        self.cps_lighting.stage = self.settings.render.lighting
+        self.cps_lighting.dispatch = s.dispatch
+        self.cps_filter.from_atlas = self.settings.render.lighting == "fragment"
+        self.cps_temporal.enabled = coarse and s.temporal
+        if not self.cps_temporal.enabled:
+            self.cps_temporal.reset()
+        self.cps_mask.enabled = mode in ("black-mask", "blur-mask")
+        return s
+
+    def cps_stats(self) -> dict:
+        """Share of pixels per detail level and lighting evaluations, from the last frame's
+        level maps (read back on request: the panel asks 4 times a second, the benchmark
+        after each timed frame)."""
+        maps = self.cps.read_levels() if self.cps_levels.enabled else []
+        if not maps:
+            return {}
+        levels = np.concatenate([m.ravel() for m in maps])
+        counts = np.bincount(levels, minlength=6)[:6]
+        blocks = float(np.sum(counts / 4.0 ** np.arange(6)))
+        return {"level_share": (counts / max(1, levels.size)).tolist(),
+                "shaded_samples": int(round(blocks)) if self.cps_lighting.enabled
+                else int(levels.size), "full_samples": int(levels.size)}
 
     def object_ids(self, frame: FrameInput) -> list[np.ndarray]:
         """Mesh index under each pixel of each eye ((H, W) int32, row 0 at the top; -1: none)."""
@@ -145,7 +202,10 @@ class Renderer:
         return {p.name: p.last_ms for p in self.passes if p.enabled}
 
     def shaded_samples(self) -> int:
-        """Lighting evaluations last frame: deferred pixels lit, or forward fragments shaded."""
+        """Lighting evaluations last frame: deferred pixels lit, CPS blocks lit, or forward
+        fragments shaded."""
+        if self.cps_lighting.enabled:
+            return int(self.cps_stats().get("shaded_samples", 0))
         stage = self.lighting if self.lighting.enabled else self.forward
         return int(stage.samples)
 
@@ -161,6 +221,7 @@ class Renderer:
     def release(self) -> None:
         for p in (*self.passes, self.ids):
             p.release()
+        self.cps.release()
         for t in self.targets:
             t.release()
         if self.gpu_scene is not None:
@@ -168,3 +229,20 @@ class Renderer:
         self._empty.release()
         self.shaders.release()
 
+
+
+def _project_hits(frame: FrameInput) -> list[list[tuple[int, int]]]:
+    """Edge-ray hit points as pixels of each eye (from the bottom-left); behind the eye: none."""
+    out: list[list[tuple[int, int]]] = []
+    for index, eye in enumerate(frame.eyes):
+        points: list[tuple[int, int]] = []
+        hits = frame.edge_hits[index] if frame.edge_hits and index < len(frame.edge_hits) else None
+        if hits is not None and len(hits):
+            h = np.asarray(hits, np.float64).reshape(-1, 3)
+            clip = np.c_[h, np.ones(len(h))] @ eye.view_projection.T
+            ok = clip[:, 3] > 1e-9
+            ndc = clip[ok, :2] / clip[ok, 3:4]
+            for x, y in ndc:
+                points.append((int((x * 0.5 + 0.5) * eye.width), int((y * 0.5 + 0.5) * eye.height)))
+        out.append(points)
+    return out

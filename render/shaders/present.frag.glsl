@@ -8,6 +8,15 @@ uniform ivec2 u_origin;  // lower-left corner of this eye's viewport in the targ
 
 out vec4 out_color;
 
+#ifdef VISUALIZE
+// CPS detail visualisation: finest level unpainted, then blue, cyan, green, yellow, red
+// (render/passes.py CPS_LEVEL_COLOURS).
+uniform usampler2D u_levels;  // half-resolution level map
+const vec3 LEVEL_COLOURS[6] = vec3[6](vec3(1.0), vec3(0.15, 0.35, 1.0), vec3(0.0, 0.9, 0.9),
+                                      vec3(0.1, 0.85, 0.1), vec3(1.0, 0.95, 0.0),
+                                      vec3(1.0, 0.1, 0.1));
+#endif
+
 vec3 tonemap(vec3 x) {  // Narkowicz's ACES fit: filmic shoulder, keeps mid-tones.
     return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
 }
@@ -20,5 +29,10 @@ vec3 srgb_encode(vec3 c) {
 void main() {
     ivec2 q = ivec2(gl_FragCoord.xy) - u_origin;
     vec3 hdr = texelFetch(u_eye_color, q, 0).rgb;
-    out_color = vec4(srgb_encode(tonemap(hdr * u_exposure)), 1.0);
+    vec3 c = srgb_encode(tonemap(hdr * u_exposure));
+#ifdef VISUALIZE
+    int s = int(texelFetch(u_levels, q >> 1, 0).r);
+    if (s > 0) c = mix(c, LEVEL_COLOURS[min(s, 5)], 0.5);
+#endif
+    out_color = vec4(c, 1.0);
 }

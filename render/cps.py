@@ -1,0 +1,333 @@
+"""Coarse pixel shading (SPEC C): level map, coarse lighting, reconstruction, masks, temporal.
+
+The deferred frame becomes, per eye::
+
+    G-buffer -> level map (half resolution, one texel per 2x2 block)
+             -> lighting at block rate  (fragment: a pass per level into an atlas;
+                                         compute: multi-level or single dispatch)
+             -> filter (none / ordinary bilinear / hierarchical) -> [temporal] -> eye colour
+
+The masks (black, blur) instead run the ordinary full-rate lighting and darken or blur the
+periphery where CPS would lower the detail. The formulas live in the shaders (cps_*.glsl) and,
+as a numpy reference the tests compare against, in ``app/cps.py``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from app.camera import EyeView, gl_bytes
+from app.settings import CpsSettings
+from render.passes import (
+    BACKGROUND,
+    EyeTargets,
+    FrameContext,
+    RenderPass,
+    _scene_uniforms,
+)
+from render.shaders import ShaderLibrary
+
+MAX_LEVEL = 5
+
+
+@dataclass
+class CpsFrame:
+    """What the coarse shading needs besides the G-buffer, per eye."""
+
+    settings: CpsSettings
+    caps: list[tuple[float, float, float]]  # side caps per eye: left, right, bottom
+    frame_index: int = 0  # alternation of the temporal filter
+    hits: list[np.ndarray] = field(default_factory=list)  # edge-ray hits (world), drawn if shown
+
+
+def atlas_layout(width: int, height: int) -> tuple[tuple[int, int], list[tuple[int, int]]]:
+    """Atlas size and the lower-left corner of each level's rectangle (level s is
+    ceil(W / 2^s) x ceil(H / 2^s)): level 0 at the origin, the others side by side above it."""
+    offsets = [(0, 0)]
+    x = 0
+    for s in range(1, MAX_LEVEL + 1):
+        offsets.append((x, height))
+        x += -(-width // (1 << s))
+    return (max(width, x), height + -(-height // 2)), offsets
+
+
+def gaze_view_dir(eye: EyeView, gaze: tuple[float, float]) -> tuple[float, float, float]:
+    """View-space unit ray of this eye through the gaze point (clamped into the viewport)."""
+    u = min(1.0, max(0.0, gaze[0] if math.isfinite(gaze[0]) else 0.5))
+    v = min(1.0, max(0.0, gaze[1] if math.isfinite(gaze[1]) else 0.5))
+    p = np.linalg.inv(eye.projection) @ np.array([2 * u - 1, 1 - 2 * v, -1.0, 1.0])
+    d = p[:3] / p[3]
+    d /= np.linalg.norm(d)
+    return float(d[0]), float(d[1]), float(d[2])
+
+
+def detail_uniforms(prog: moderngl.Program, eye: EyeView, gaze: tuple[float, float],
+                    caps: tuple[float, float, float], s: CpsSettings) -> None:
+    prog["u_size"].value = (eye.width, eye.height)
+    prog["u_inv_projection"].write(gl_bytes(np.linalg.inv(eye.projection)))
+    prog["u_gaze_dir"].value = gaze_view_dir(eye, gaze)
+    prog["u_caps"].value = tuple(float(c) for c in caps)
+    prog["u_fovea_deg"].value = float(s.fovea_deg)
+    prog["u_deg_per_level"].value = float(s.deg_per_level)
+    prog["u_max_level"].value = int(min(max(s.max_level, 0), MAX_LEVEL))
+
+
+class CpsEyeTargets:
+    """One eye's CPS textures, made with the eye targets' size."""
+
+    def __init__(self, ctx: moderngl.Context, eye: EyeTargets) -> None:
+        width, height = eye.size
+        self.eye = eye
+        self.size = (width, height)
+        half = (-(-width // 2), -(-height // 2))
+        self.levels = ctx.texture(half, 1, dtype="u1")
+        self.atlas_size, self.atlas_offsets = atlas_layout(width, height)
+        self.atlas = ctx.texture(self.atlas_size, 4, dtype="f2")
+        self.blocks = ctx.texture(self.size, 4, dtype="f2")  # compute output / lit for masks
+        self.filtered = ctx.texture(self.size, 4, dtype="f2")  # before the temporal filter
+        self.history = [ctx.texture(self.size, 4, dtype="f2") for _ in range(2)]
+        self.lit = ctx.texture(self.size, 4, dtype="f2")
+        self.lit.build_mipmaps()  # allocates the chain the blur mask reads
+        for t in (self.levels, self.atlas, self.blocks, self.filtered, *self.history):
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            t.repeat_x = t.repeat_y = False
+        self.lit.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        self.lit.repeat_x = self.lit.repeat_y = False
+        self.levels_fbo = ctx.framebuffer([self.levels])
+        self.atlas_fbo = ctx.framebuffer([self.atlas])
+        self.filtered_fbo = ctx.framebuffer([self.filtered])
+        self.lit_fbo = ctx.framebuffer([self.lit])
+        # The temporal filter writes the eye's colour and the next history together.
+        self.temporal_fbos = [ctx.framebuffer([eye.color, h]) for h in self.history]
+        self.history_index = 0  # which history texture holds the previous frame
+        self.has_history = False
+        self.prev_view_projection = np.eye(4)
+        self.prev_eye = np.zeros(3)
+
+    def release(self) -> None:
+        for obj in (self.levels_fbo, self.atlas_fbo, self.filtered_fbo, self.lit_fbo,
+                    *self.temporal_fbos, self.levels, self.atlas, self.blocks, self.filtered,
+                    *self.history, self.lit):
+            obj.release()
+
+
+class CpsState:
+    """The CPS targets of both eyes plus what the passes of one frame share."""
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.ctx = ctx
+        self.eyes: list[CpsEyeTargets] = []
+        self.frame: CpsFrame | None = None
+        self.mode = "none"
+        self.level_maps_valid = False
+
+    def ensure(self, targets: list[EyeTargets]) -> None:
+        """Targets for these eye targets (re-made when the eye targets were)."""
+        if len(self.eyes) == len(targets) and all(c.eye is t for c, t in zip(self.eyes, targets)):
+            return
+        self.release()
+        self.eyes = [CpsEyeTargets(self.ctx, t) for t in targets]
+        self.level_maps_valid = False
+
+    def read_levels(self) -> list[np.ndarray]:
+        """Each eye's level per pixel, (H, W) uint8, row 0 at the top (empty if not made)."""
+        if not self.level_maps_valid:
+            return []
+        out = []
+        for e in self.eyes:
+            w, h = e.levels.size
+            half = np.frombuffer(e.levels.read(alignment=1), np.uint8).reshape(h, w)
+            full = np.repeat(np.repeat(half, 2, axis=0), 2, axis=1)[: e.size[1], : e.size[0]]
+            out.append(np.ascontiguousarray(np.flipud(full)))
+        return out
+
+    def release(self) -> None:
+        for e in self.eyes:
+            e.release()
+        self.eyes = []
+
+
+class CpsPass(RenderPass):
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, state: CpsState) -> None:
+        super().__init__(ctx, shaders)
+        self.state = state
+
+
+class CpsLevelPass(CpsPass):
+    """The half-resolution level map of each eye."""
+
+    name = "cps_levels"
+
+    def execute(self, frame: FrameContext) -> None:
+        cf = self.state.frame
+        assert cf is not None
+        prog = self.shaders.program("fullscreen.vert.glsl", "cps_levels.frag.glsl")
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        for index, (eye, tgt) in enumerate(zip(frame.eyes, self.state.eyes)):
+            detail_uniforms(prog, eye, frame.gaze, cf.caps[index], cf.settings)
+            weak = cf.settings.temporal and (cf.frame_index + index) % 2 == 1
+            prog["u_level_offset"].value = 1 if weak else 0
+            tgt.levels_fbo.use()
+            self.fullscreen(prog)
+        self.state.level_maps_valid = True
+
+
+class CpsLightingPass(CpsPass):
+    """Lighting once per block: per level into the atlas (fragment) or in compute."""
+
+    name = "cps_lighting"
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, state: CpsState) -> None:
+        super().__init__(ctx, shaders, state)
+        self.stage = "fragment"
+        self.dispatch = "multi"
+
+    def execute(self, frame: FrameContext) -> None:
+        cf = self.state.frame
+        assert cf is not None
+        frame.scene.light_buffer.bind_to_uniform_block(0)
+        compute = self.stage == "compute"
+        if compute:
+            prog = self.shaders.compute("cps_lighting.comp.glsl",
+                                        {"MULTI_LEVEL": self.dispatch == "multi"})
+        else:
+            prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl")
+        _scene_uniforms(prog, frame)
+        prog["u_background"].value = BACKGROUND
+        max_level = int(min(max(cf.settings.max_level, 0), MAX_LEVEL))
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        for eye, tgt, cps in zip(frame.eyes, frame.targets, self.state.eyes):
+            w, h = tgt.size
+            tgt.albedo.use(1)
+            tgt.normal.use(2)
+            tgt.depth.use(3)
+            cps.levels.use(4)
+            prog["u_gb_albedo"].value, prog["u_gb_normal"].value = 1, 2
+            prog["u_gb_depth"].value, prog["u_levels"].value = 3, 4
+            prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
+            prog["u_eye"].value = tuple(eye.position)
+            prog["u_size"].value = (w, h)
+            if compute:
+                cps.blocks.bind_to_image(0, read=False, write=True)
+                if self.dispatch == "multi":
+                    for s in range(max_level + 1):
+                        prog["u_level"].value = s
+                        bw, bh = -(-w // (1 << s)), -(-h // (1 << s))
+                        prog.run(math.ceil(bw / 8), math.ceil(bh / 8))
+                else:
+                    prog.run(math.ceil(math.ceil(w / 32) / 8), math.ceil(math.ceil(h / 32) / 8))
+            else:
+                cps.atlas_fbo.use()
+                for s in range(max_level + 1):
+                    ox, oy = cps.atlas_offsets[s]
+                    cps.atlas_fbo.viewport = (ox, oy, -(-w // (1 << s)), -(-h // (1 << s)))
+                    prog["u_level"].value = s
+                    prog["u_atlas_offset"].value = (ox, oy)
+                    self.fullscreen(prog)
+        if compute:
+            self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
+                                    | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+
+class CpsFilterPass(CpsPass):
+    """Blocks back to pixels: raw, ordinary bilinear or the paper's hierarchical filter."""
+
+    name = "cps_filter"
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, state: CpsState) -> None:
+        super().__init__(ctx, shaders, state)
+        self.from_atlas = True
+
+    def execute(self, frame: FrameContext) -> None:
+        cf = self.state.frame
+        assert cf is not None
+        kind = cf.settings.filter
+        prog = self.shaders.program("fullscreen.vert.glsl", "cps_filter.frag.glsl", {
+            "FROM_ATLAS": self.from_atlas, "FILTER_HIERARCHICAL": kind == "hierarchical",
+            "FILTER_BILINEAR": kind == "bilinear"})
+        self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        for tgt, cps in zip(frame.targets, self.state.eyes):
+            prog["u_size"].value = tgt.size
+            cps.levels.use(4)
+            prog["u_levels"].value = 4
+            if self.from_atlas:
+                cps.atlas.use(5)
+                prog["u_atlas"].value = 5
+                prog["u_atlas_offsets"].write(np.array(cps.atlas_offsets, np.int32).tobytes())
+            else:
+                cps.blocks.use(5)
+                prog["u_blocks"].value = 5
+            fbo = cps.filtered_fbo if cf.settings.temporal else tgt.forward
+            fbo.use()
+            self.fullscreen(prog)
+
+
+class CpsMaskPass(CpsPass):
+    """Black or blur mask over the full-rate lighting (the paper's comparisons)."""
+
+    name = "cps_mask"
+
+    def execute(self, frame: FrameContext) -> None:
+        cf = self.state.frame
+        assert cf is not None
+        black = self.state.mode == "black-mask"
+        prog = self.shaders.program("fullscreen.vert.glsl", "cps_mask.frag.glsl",
+                                    {"BLACK_MASK": black})
+        self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT
+                                | moderngl.TEXTURE_FETCH_BARRIER_BIT)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
+            self.ctx.copy_framebuffer(cps.lit_fbo, tgt.forward)
+            if not black:
+                cps.lit.build_mipmaps()
+            detail_uniforms(prog, eye, frame.gaze, cf.caps[index], cf.settings)
+            cps.lit.use(5)
+            prog["u_lit"].value = 5
+            tgt.forward.use()
+            self.fullscreen(prog)
+
+
+class CpsTemporalPass(CpsPass):
+    """Alternating temporal filter with optional reprojection of the history."""
+
+    name = "cps_temporal"
+
+    def execute(self, frame: FrameContext) -> None:
+        cf = self.state.frame
+        assert cf is not None
+        s = cf.settings
+        prog = self.shaders.program("fullscreen.vert.glsl", "cps_temporal.frag.glsl",
+                                    {"REPROJECT": s.reproject})
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
+            weak = (cf.frame_index + index) % 2 == 1  # this frame is the finer one
+            previous = cps.history[cps.history_index]
+            fbo = cps.temporal_fbos[1 - cps.history_index]
+            cps.filtered.use(5)
+            previous.use(6)
+            tgt.depth.use(3)
+            prog["u_current"].value, prog["u_history"].value, prog["u_gb_depth"].value = 5, 6, 3
+            prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
+            prog["u_prev_view_projection"].write(gl_bytes(cps.prev_view_projection))
+            prog["u_eye"].value = tuple(eye.position)
+            prog["u_prev_eye"].value = tuple(float(v) for v in cps.prev_eye)
+            prog["u_size"].value = tgt.size
+            w = float(s.history_weight)
+            prog["u_current_weight"].value = w if weak else 1.0 - w
+            prog["u_has_history"].value = int(cps.has_history)
+            fbo.use()
+            self.fullscreen(prog)
+            cps.history_index = 1 - cps.history_index
+            cps.has_history = True
+            cps.prev_view_projection = eye.view_projection.copy()
+            cps.prev_eye = np.asarray(eye.position, np.float64).copy()
+
+    def reset(self) -> None:
+        """Forget the history (scene change, mode change, a jump along the path)."""
+        for cps in self.state.eyes:
+            cps.has_history = False
