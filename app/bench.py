@@ -79,8 +79,7 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
     if compare_every > 0:
         from render.offscreen import OffscreenHost
 
-        ref_settings = settings.copy()
-        ref_settings.tcr.enabled = False
+        ref_settings = full_quality(settings)
         reference = OffscreenHost(*size, ref_settings)
         reference.set_scene(scene)
         reference.set_text_image(None)
@@ -93,6 +92,8 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
     per_frame: list[dict] = []
     errors_whole: list[dict] = []
     errors_gazed: list[dict] = []
+    errors_regions: dict[str, list[dict]] = {}
+    fovea_max: list[int] = []
     try:
         host.set_text_image(None)
         for i in range(-warmup, total):
@@ -123,6 +124,17 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
                 whole = metrics.compare(ref_img, test_img, ppd)
                 record["error"] = whole
                 errors_whole.append({**whole, "state": session.state})
+                if settings.cps.mode != "none" and frame.eyes[0].width > 0:
+                    fovea = np.hstack([np.flipud(_fovea_mask(session, frame, e))
+                                       for e in range(2)])
+                    for region, mask in (("fovea", fovea), ("periphery", ~fovea)):
+                        if mask.any():
+                            err = metrics.compare(ref_img, test_img, ppd, mask)
+                            record[f"error_{region}"] = err
+                            errors_regions.setdefault(region, []).append(err)
+                    if fovea.any():
+                        diff = np.abs(ref_img.astype(int) - test_img.astype(int))[fovea]
+                        fovea_max.append(int(diff.max()))
                 if gazed is not None:
                     ids = reference.object_ids(frame)
                     mask = np.hstack(ids) == gazed
@@ -166,9 +178,12 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
     }
     if reference is not None:
         result["error_vs_full_quality"] = {
-            "reference": "same frame with TCR off (finest texture levels), display values",
+            "reference": "same frame at full quality (TCR off, full-rate lighting, no mask), "
+                         "display values; fovea/periphery: pixels at CPS level 0 / above 0",
             "pixels_per_degree": ppd,
             "frame": _mean_errors(errors_whole), "gazed_object": _mean_errors(errors_gazed),
+            **{region: _mean_errors(rows) for region, rows in errors_regions.items()},
+            "fovea_max_abs_diff": max(fovea_max) if fovea_max else None,
             "by_state": {str(s): {"frame": _mean_errors([e for e in errors_whole
                                                          if e["state"] == s]),
                                   "gazed_object": _mean_errors([e for e in errors_gazed
@@ -176,6 +191,27 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
                          for s in sorted({e["state"] for e in errors_whole})},
         }
     return result
+
+
+def full_quality(settings: Settings) -> Settings:
+    """The reference a setting's errors are measured against: finest textures (TCR off) and
+    full-rate lighting without a mask (CPS none), everything else the same."""
+    ref = settings.copy()
+    ref.tcr.enabled = False
+    ref.cps.mode = "none"
+    ref.cps.visualize = False
+    return ref
+
+
+def _fovea_mask(session: Session, frame, eye: int) -> np.ndarray:
+    """Pixels of one eye the detail map keeps at level 0 (GL row order, row 0 at the bottom)."""
+    from app.cps import detail_map
+
+    view = frame.eyes[eye]
+    caps = frame.cps_caps[eye] if frame.cps_caps else (0, 0, 0)
+    levels = detail_map(view, view.width, view.height, frame.gaze,
+                        dict(zip(("left", "right", "bottom"), caps)), session.settings.cps)
+    return levels == 0
 
 
 def _group(records: list[dict], key: str, max_groups: int = 0) -> dict[str, dict]:

@@ -39,6 +39,8 @@ class Session:
         self.tcr: TcrController | None = None
         self.levels: list[int] | None = None
         self.gazed: int | None = None
+        self.eye_size = (640, 720)
+        self.edge: list = []  # CPS: app.cps.SideCaps per eye, from the last tick
         self._frame = -2  # last path frame applied (-2: none)
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
@@ -101,10 +103,23 @@ class Session:
         m.move_on, m.move_off, m.window_s = t.move_on, t.move_off, t.window_s
         m.update(dt, self.viewpoint_speed, self.gaze.state.fixed)
         self.gazed = self.gazed_index()
+        self.edge = self.edge_caps()
         if self.tcr is not None:
             self.levels = [int(v) for v in self.tcr.update(
                 self.walker.position, self.gazed, m.viewpoint_moving, m.gaze_fixed,
                 self.settings.render.brightness, t)]
+
+    def edge_caps(self) -> list:
+        """CPS side caps per eye from the edge rays; [] when CPS and its views are off. The
+        eye viewport is the one of the last :meth:`frame_input` (640x720 before any)."""
+        c = self.settings.cps
+        if c.mode == "none" and not c.visualize:
+            return []
+        from app.cps import side_caps
+
+        w = self.walker
+        self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
+        return [side_caps(self.caster, eye, c) for eye in self.camera.eyes(*self.eye_size)]
 
     def observe_motion(self, dt: float) -> None:
         """Viewpoint speed since the last call: metres per second plus turning at 1 m per 30 deg."""
@@ -135,11 +150,14 @@ class Session:
                        self.walker.yaw_deg, self.walker.pitch_deg, (g.u, g.v), g.fixed)
 
     def frame_input(self, eye_width: int, eye_height: int) -> FrameInput:
+        self.eye_size = (max(1, int(eye_width)), max(1, int(eye_height)))
         w = self.walker
         self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
         g = self.gaze.state
+        caps = [(e.caps["left"], e.caps["right"], e.caps["bottom"]) for e in self.edge]
         return FrameInput(self.camera.eyes(eye_width, eye_height), (g.u, g.v), g.fixed,
-                          self.levels if self.settings.tcr.enabled else None)
+                          self.levels if self.settings.tcr.enabled else None,
+                          caps or None, [e.hits for e in self.edge] or None)
 
     # -- queries -------------------------------------------------------------------------------
     def gazed_index(self, eye_width: int = 640, eye_height: int = 720) -> int | None:

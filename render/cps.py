@@ -252,9 +252,11 @@ class CpsFilterPass(CpsPass):
         self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         for tgt, cps in zip(frame.targets, self.state.eyes):
-            prog["u_size"].value = tgt.size
+            if "u_size" in prog:  # unused (optimised out) without a filter
+                prog["u_size"].value = tgt.size
             cps.levels.use(4)
-            prog["u_levels"].value = 4
+            if "u_levels" in prog:  # raw compute blocks need no level map
+                prog["u_levels"].value = 4
             if self.from_atlas:
                 cps.atlas.use(5)
                 prog["u_atlas"].value = 5
@@ -311,7 +313,9 @@ class CpsTemporalPass(CpsPass):
             cps.filtered.use(5)
             previous.use(6)
             tgt.depth.use(3)
+            cps.levels.use(4)
             prog["u_current"].value, prog["u_history"].value, prog["u_gb_depth"].value = 5, 6, 3
+            prog["u_levels"].value = 4
             prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
             prog["u_prev_view_projection"].write(gl_bytes(cps.prev_view_projection))
             prog["u_eye"].value = tuple(eye.position)

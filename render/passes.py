@@ -366,7 +366,8 @@ class OverlayPass(RenderPass):
         ctx.disable(moderngl.BLEND)
         for e, points in enumerate(frame.markers or []):  # edge-ray hits: small magenta squares
             for px, py in points:
-                if 0 <= px < w and 0 <= py < h:
+                if -3 <= px <= w + 2 and -3 <= py <= h + 2:  # on the view's edge: kept inside
+                    px, py = min(max(px, 2), w - 3), min(max(py, 2), h - 3)
                     frame.out.clear(1.0, 0.0, 1.0, 1.0, viewport=(x0 + e * w + px - 2,
                                                                  y0 + py - 2, 5, 5))
 

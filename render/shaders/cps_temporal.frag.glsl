@@ -2,7 +2,9 @@
 // Alternating temporal filter (paper 3.2.1), plus reprojection (beyond the paper): each eye
 // blends its new image with its previous one, the finer of the two weighted more. With
 // REPROJECT the history is read where this pixel's surface was in the previous frame, and
-// rejected where that spot showed another surface (disocclusion) or lies off screen.
+// rejected where that spot showed another surface (disocclusion) or lies off screen. Pixels
+// shaded at full rate this frame (level 0: the fovea) are taken as they are.
+#include "cps_common.glsl"
 uniform sampler2D u_current;  // this frame, filtered
 uniform sampler2D u_history;  // previous frame before blending: rgb, a = distance from the eye
 uniform sampler2D u_gb_depth;
@@ -50,6 +52,7 @@ void main() {
     } else {
         hist = texelFetch(u_history, p, 0).rgb;
     }
+    ok = ok && level_at(p) > 0;
     vec3 c = ok ? mix(hist, now, u_current_weight) : now;
     out_color = vec4(c, 1.0);
     out_history = vec4(now, dist);
