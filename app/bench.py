@@ -65,8 +65,12 @@ def render_frame(scene_name: str, out: str | Path, size: tuple[int, int], frame:
 
 def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Settings,
           warmup: int = 5, path: CameraPath | None = None,
-          progress: Progress | None = None, compare_every: int = 0) -> dict:
+          progress: Progress | None = None, compare_every: int = 0, stride: int = 1) -> dict:
     """Replay the path; per-frame wall time and per-pass GPU time. frames=0: the whole path.
+
+    ``stride`` K > 1 times every K-th frame of the path only (the session still steps through
+    the frames in between, so motion states are as when played): the whole of a long walk in
+    fewer rendered frames.
 
     With ``compare_every`` K > 0, every K-th frame is also rendered at full quality (TCR off) by
     a second host and the error of this setting against it is measured (display values): for
@@ -74,7 +78,8 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
     """
     scene, session, host = _open(scene_name, size, settings, path)
     assert session.path is not None
-    total = frames if frames > 0 else session.path.frame_count()
+    stride = max(1, int(stride))
+    total = frames if frames > 0 else -(-session.path.frame_count() // stride)
     reference = None
     if compare_every > 0:
         from render.offscreen import OffscreenHost
@@ -97,7 +102,7 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
     try:
         host.set_text_image(None)
         for i in range(-warmup, total):
-            session.apply_path_frame(max(i, 0) % session.path.frame_count())
+            session.apply_path_frame(max(i, 0) * stride % session.path.frame_count())
             frame = session.frame_input(*host.eye_size)
             t0 = time.perf_counter()
             host.render_only(frame)
@@ -113,7 +118,8 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
             distance = (float(session.tcr.distances[gazed]) if gazed is not None
                         and session.tcr is not None and len(session.tcr.distances) > gazed
                         else None)
-            record = {"gazed_distance_m": None if distance is None else round(distance, 2),
+            record = {"path_frame": max(i, 0) * stride % session.path.frame_count(),
+                      "gazed_distance_m": None if distance is None else round(distance, 2),
                       "frame": i, "ms": dt, "state": session.state, "gazed":
                       session.gazed_object(), "gazed_level": (session.levels[gazed] if (
                           settings.tcr.enabled and session.levels and gazed is not None)
@@ -160,6 +166,7 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
         "device": device,
         "frames": len(frame_ms),
         "warmup_frames": warmup,
+        "stride": stride,
         "time_step_s": FIXED_DT,
         "fps_median": 1000.0 / ft["median"] if ft["median"] > 0 else 0.0,
         "frame_ms": ft,

@@ -49,6 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--warmup", type=int, default=5, help="frames rendered before timing")
     b.add_argument("--compare-every", type=int, default=0, metavar="K",
                    help="every K-th frame, measure PSNR/SSIM/FLIP against full quality")
+    b.add_argument("--stride", type=int, default=1, metavar="K",
+                   help="time every K-th frame of the path only (a long walk in fewer frames)")
     rep = sub.add_parser("report", help="benchmark JSON files as one markdown table")
     rep.add_argument("files", nargs="+", help="JSON files written by vrpreview bench")
     rep.add_argument("--group", action="append", default=[], metavar="KEY",
@@ -120,7 +122,7 @@ def _run(args: argparse.Namespace, settings: Settings, path) -> int:
     if args.command == "bench":
         size = bench.parse_size(args.size)
         result = bench.bench(args.scene, size, args.frames, settings, args.warmup, path,
-                             _progress("bench"), args.compare_every)
+                             _progress("bench"), args.compare_every, args.stride)
         from app.fileio import atomic_write_json
 
         atomic_write_json(args.out, result)

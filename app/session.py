@@ -66,16 +66,18 @@ class Session:
     def apply_path_frame(self, n: int, dt: float = FIXED_DT) -> PathKey:
         """Put body and gaze where the path is at frame n (fixed step: reproducible).
 
-        The motion state depends on the frames before, so a jump replays the path from frame 0
-        (no rendering, a few milliseconds): frame N is the same whether played or sought.
+        The motion state depends on the frames before, so a jump steps through the frames in
+        between (from frame 0 when going back; no rendering, well under a millisecond a frame):
+        frame N is the same whether played or sought.
         """
         if self.path is None:
             raise RuntimeError("no path: call set_scene first")
         n = max(0, int(n))
-        if n != self._frame + 1:
+        if n <= self._frame or self._frame < 0:  # backwards (or the first call): from frame 0
             self._reset_motion()
-            for k in range(n):
-                self.apply_key(self.path.at_frame(k, dt), dt)
+            self._frame = -1
+        for k in range(self._frame + 1, n):  # forwards: step through the frames in between
+            self.apply_key(self.path.at_frame(k, dt), dt)
         key = self.path.at_frame(n, dt)
         self.apply_key(key, dt)
         self._frame = n
