@@ -9,7 +9,7 @@ APT_PKGS := libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-re
 	libxcb-xinerama0 libxcb-xkb1 libxcb-shape0 libxcb-randr0 libxkbcommon-x11-0 \
 	libdbus-1-3 libfontconfig1 xvfb xauth libegl1 libgl1 libgl1-mesa-dri libegl-mesa0
 
-.PHONY: bench-tcr run test sysdeps venv lint bench clean dist
+.PHONY: bench-tcr bench-cps run test sysdeps venv lint bench clean dist
 
 sysdeps:
 	@if ! command -v dpkg-query >/dev/null; then \
@@ -47,21 +47,15 @@ test: sysdeps $(STAMP) lint
 bench: sysdeps $(STAMP)
 	$(VENV)/bin/vrpreview bench --scene showroom --size 1280x720 --frames 120 --out out/bench-showroom.json
 
-# The TCR paper's experiments (issue 3): the cube against distance, orbiting (state 1), gaze held
-# (states 2, 3), and the showroom walkthrough; TCR off against the presets, with image error
-# against the TCR-off frame. About 10 minutes on 2 cores; tables printed at the end.
-TCR_OUT := out/bench-tcr
-TCR_RUNS := off:tcr.enabled=false ergonomics:tcr.preset=ergonomics psychology:tcr.preset=psychology
+# The papers' experiments, one benchmark after another, tables printed at the end:
+# bench-tcr (issue 3, ~13 min): the cube against distance, orbiting, gaze held, the showroom
+# walkthrough, each with TCR off / ergonomics / psychology. bench-cps (issue 4): the corridor
+# walk with 100 lights, Tables 1 and 2 of the CPS paper and the filters' image error.
 bench-tcr: sysdeps $(STAMP)
-	@mkdir -p $(TCR_OUT)
-	@for path in tcr_cube_distance tcr_cube_orbit tcr_cube_gaze showroom_walkthrough; do \
-	  scene=tcr-cube; every=30; [ $$path = showroom_walkthrough ] && scene=showroom && every=20; \
-	  for run in $(TCR_RUNS); do name=$${run%%:*}; set=$${run#*:}; \
-	    $(VENV)/bin/vrpreview bench --scene $$scene --path $$path --frames 0 --compare-every $$every \
-	      --set tcr.enabled=true --set $$set --out $(TCR_OUT)/$$path-$$name.json > /dev/null || exit 1; \
-	  done; \
-	done
-	$(VENV)/bin/vrpreview report $(TCR_OUT)/*.json --group by_state --group by_gazed_level
+	$(VENV)/bin/vrpreview experiments tcr --out out/bench-tcr
+
+bench-cps: sysdeps $(STAMP)
+	$(VENV)/bin/vrpreview experiments cps --out out/bench-cps
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

@@ -51,6 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="every K-th frame, measure PSNR/SSIM/FLIP against full quality")
     b.add_argument("--stride", type=int, default=1, metavar="K",
                    help="time every K-th frame of the path only (a long walk in fewer frames)")
+    ex = sub.add_parser("experiments", help="run a paper's benchmark set and print its tables")
+    ex.add_argument("which", choices=("tcr", "cps"), help="tcr: texture LOD; cps: coarse shading")
+    ex.add_argument("--out", default=None, help="folder for the JSON files (out/bench-WHICH)")
+    ex.add_argument("--only", default=None, help="only the runs whose name contains this")
     rep = sub.add_parser("report", help="benchmark JSON files as one markdown table")
     rep.add_argument("files", nargs="+", help="JSON files written by vrpreview bench")
     rep.add_argument("--group", action="append", default=[], metavar="KEY",
@@ -109,6 +113,11 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args: argparse.Namespace, settings: Settings, path) -> int:
     from app import bench
 
+    if args.command == "experiments":
+        from app.experiments import run_all
+
+        print(run_all(args.which, args.out or f"out/bench-{args.which}", args.only))
+        return 0
     if args.command == "report":
         from app.report import report
 

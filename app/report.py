@@ -34,6 +34,22 @@ def row(name: str, result: dict) -> list[str]:
             _num(gazed.get("ssim"), ".4f")]
 
 
+CPS_COLUMNS = ("run", "frames", "fps", "frame ms", "p95 ms", "samples / frame", "PSNR dB",
+               "fovea max diff", "periphery PSNR dB", "periphery SSIM", "periphery FLIP")
+
+
+def cps_row(name: str, result: dict) -> list[str]:
+    err = result.get("error_vs_full_quality") or {}
+    frame, periphery = err.get("frame", {}), err.get("periphery", {})
+    fovea_max = err.get("fovea_max_abs_diff")
+    return [name, str(result.get("frames", "-")), _num(result.get("fps_median"), ".2f"),
+            _num(result.get("frame_ms", {}).get("median"), ".1f"),
+            _num(result.get("frame_ms", {}).get("p95"), ".1f"),
+            str(result.get("shaded_samples", "-")), _num(frame.get("psnr_db"), ".1f"),
+            "-" if fovea_max is None else str(fovea_max), _num(periphery.get("psnr_db"), ".1f"),
+            _num(periphery.get("ssim"), ".4f"), _num(periphery.get("flip"), ".4f")]
+
+
 def group_rows(result: dict, key: str) -> list[list[str]]:
     """Median fps per value of a per-frame grouping (by_state, by_gazed_level, ...)."""
     return [[value, str(g["frames"]), _num(g["fps_median"], ".1f"),
@@ -54,7 +70,11 @@ def report(paths: list[str | Path], groups: tuple[str, ...] = ()) -> str:
             results.append((Path(p).stem, json.loads(Path(p).read_text(encoding="utf-8"))))
         except (OSError, ValueError) as exc:
             raise ValueError(f"{p}: not a benchmark JSON file ({exc})") from exc
-    parts = [markdown(COLUMNS, [row(name, r) for name, r in results])]
+    if any(r.get("settings", {}).get("cps", {}).get("mode", "none") != "none"
+           for _, r in results):
+        parts = [markdown(CPS_COLUMNS, [cps_row(name, r) for name, r in results])]
+    else:
+        parts = [markdown(COLUMNS, [row(name, r) for name, r in results])]
     for key in groups:
         for name, r in results:
             if r.get(key):

@@ -25,6 +25,12 @@ def _texture_test() -> Scene:
     return build_texture_test_scene()
 
 
+def _corridor() -> Scene:
+    from assets.corridor import build_corridor
+
+    return build_corridor()
+
+
 def _tcr_cube() -> Scene:
     from assets.tcr_cube import build_tcr_cube
 
@@ -36,16 +42,17 @@ BUILTIN: dict[str, Callable[[], Scene]] = {
     "showroom-100": _showroom(100),
     "texture-test": _texture_test,
     "tcr-cube": _tcr_cube,
+    "corridor": _corridor,
 }
 BUILTIN_PATHS = {"showroom": "showroom_walkthrough", "showroom-100": "showroom_walkthrough",
-                 "tcr-cube": "tcr_cube_distance"}
+                 "tcr-cube": "tcr_cube_distance", "corridor": "corridor_walk"}
 
 
 def _generated_paths() -> dict[str, Callable[[], CameraPath]]:
-    from assets import tcr_cube
+    from assets import corridor, tcr_cube
 
     return {"tcr_cube_distance": tcr_cube.distance_path, "tcr_cube_orbit": tcr_cube.orbit_path,
-            "tcr_cube_gaze": tcr_cube.gaze_path}
+            "tcr_cube_gaze": tcr_cube.gaze_path, "corridor_walk": corridor.corridor_walk}
 
 
 def resolve_path(name_or_file: str | os.PathLike[str]) -> CameraPath:

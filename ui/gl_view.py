@@ -112,6 +112,16 @@ class StereoView(QOpenGLWidget):
     def texture_resident_bytes(self) -> int:
         return self.renderer.texture_resident_bytes() if self.renderer is not None else 0
 
+    def cps_stats(self) -> dict:
+        """The renderer's CPS statistics (reads the level maps: needs the GL context)."""
+        if self.renderer is None:
+            return {}
+        self.makeCurrent()
+        try:
+            return self.renderer.cps_stats()
+        finally:
+            self.doneCurrent()
+
     def release_gl(self) -> None:
         if self.renderer is not None:
             self.makeCurrent()

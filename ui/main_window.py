@@ -37,6 +37,7 @@ from app.scene import Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
+from ui.cps_panel import CpsPanel
 from ui.gl_view import StereoView, default_format
 from ui.panels import EvaluationBar, SettingsPanel
 from ui.tcr_panel import TcrPanel
@@ -71,9 +72,11 @@ class MainWindow(QMainWindow):
 
         self.panel = SettingsPanel(self.settings, ("stereo", "render", "navigation", "gaze"))
         self.tcr_panel = TcrPanel(self.session, on_change=self._setting_changed)
+        self.cps_panel = CpsPanel(self.settings, self._cps_stats, on_change=self._setting_changed)
         self.panel.on_change = self._setting_changed
         tabs = QTabWidget()
         tabs.addTab(self.tcr_panel, "TCR")
+        tabs.addTab(self.cps_panel, "CPS")
         tabs.addTab(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)
         self.dock.setObjectName("evaluation-panels")
@@ -261,16 +264,28 @@ class MainWindow(QMainWindow):
             return
         for key in loaded.keys():  # in place: the session, renderer and panels share it
             self.settings.set(key, loaded.get(key))
-        self.panel.refresh()
-        self.tcr_panel.refresh()
         self._setting_changed("")
 
     def _setting_changed(self, key: str) -> None:
-        """Keep both panels showing the one model, and redraw."""
-        if key.startswith(("render.", "tcr.")):
+        """Keep the panels showing the one model, and redraw."""
+        if key.startswith(("render.", "tcr.", "cps.")) or not key:
             self.panel.refresh()
             self.tcr_panel.refresh()
+            self.cps_panel.refresh()
+        if key.startswith("cps."):
+            self.session.edge = self.session.edge_caps()  # caps show at once, even when paused
         self.view.update()
+
+    def _cps_stats(self) -> dict:
+        """Live CPS figures for the panel: the renderer's level shares and samples, and the
+        session's edge-ray caps and distances."""
+        stats = self.view.cps_stats()
+        edge = self.session.edge
+        if edge:
+            stats["edge_caps"] = [[e.caps[s] for s in ("left", "right", "bottom")] for e in edge]
+            stats["edge_distances"] = [[e.distances[s] for s in ("left", "right", "bottom")]
+                                       for e in edge]
+        return stats
 
     # -- viewpoints and paths ------------------------------------------------------------------
     def _viewpoints_file(self) -> Path:

@@ -36,6 +36,7 @@ vec3 lerp(vec3 a, vec3 b, float t) {
 
 vec3 hierarchical(ivec2 p) {
     int L = 1 << level_at(p);
+    if (L == 1) return block_colour(p);  // full rate: l = 0, the weights pick t00 alone
     ivec2 O = p & ~(L - 1);
     vec2 l = (vec2(p - O) + 0.5) / float(L) - 0.5;
     int a0 = abs(l.y) > abs(l.x) ? 1 : 0;  // ties: x
@@ -63,6 +64,7 @@ vec3 hierarchical(ivec2 p) {
 
 vec3 bilinear(ivec2 p) {
     int L = 1 << level_at(p);
+    if (L == 1) return block_colour(p);
     vec2 f = (vec2(p) + 0.5) / float(L) - 0.5;
     ivec2 i = ivec2(floor(f));
     vec2 w = f - vec2(i);

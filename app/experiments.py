@@ -1,0 +1,115 @@
+"""The papers' experiments as lists of benchmark runs (``vrpreview experiments tcr|cps``).
+
+Each run is one ``vrpreview bench`` with its settings; every result is written as its own
+JSON file (the command that makes it again is stored in it) and the tables are printed at the
+end through :mod:`app.report`. Runs go one after another: timings of runs that overlap on a
+2-core machine mean nothing.
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from app.bench import bench, parse_size
+from app.fileio import atomic_write_json
+from app.report import report
+from app.scenes import resolve_path
+from app.settings import Settings
+
+
+@dataclass(frozen=True)
+class Run:
+    name: str
+    scene: str
+    path: str
+    sets: tuple[str, ...]
+    frames: int = 0
+    stride: int = 1
+    compare_every: int = 0
+    size: str = "1280x720"
+    groups: tuple[str, ...] = field(default=())
+
+    def command(self) -> str:
+        parts = ["vrpreview", "bench", "--scene", self.scene, "--path", self.path,
+                 "--size", self.size, "--frames", str(self.frames)]
+        if self.stride > 1:
+            parts += ["--stride", str(self.stride)]
+        if self.compare_every:
+            parts += ["--compare-every", str(self.compare_every)]
+        for s in self.sets:
+            parts += ["--set", s]
+        return shlex.join(parts)
+
+
+def tcr_runs() -> list[Run]:
+    """TCR paper: the cube against distance, orbiting (state 1), gaze held (states 2 and 3), and
+    the showroom walkthrough; each with TCR off, ergonomics and psychology."""
+    presets = (("off", ("tcr.enabled=false",)),
+               ("ergonomics", ("tcr.enabled=true", "tcr.preset=ergonomics")),
+               ("psychology", ("tcr.enabled=true", "tcr.preset=psychology")))
+    runs = []
+    for path in ("tcr_cube_distance", "tcr_cube_orbit", "tcr_cube_gaze", "showroom_walkthrough"):
+        scene = "showroom" if path == "showroom_walkthrough" else "tcr-cube"
+        every = 20 if scene == "showroom" else 30
+        for name, sets in presets:
+            runs.append(Run(f"{path}-{name}", scene, path, sets, compare_every=every,
+                            groups=("by_state", "by_gazed_level")))
+    return runs
+
+
+def cps_runs() -> list[Run]:
+    """CPS paper on the corridor walk with 100 lights, 2x640x720: Table 1 (the mitigation
+    modes), Table 2 (multi-level against single dispatch per maximum block) and the image
+    error of the filters and the temporal filter against full-rate lighting."""
+    walk = ("corridor", "corridor_walk")
+    table1 = (("none-fragment", ("cps.mode=none", "render.lighting=fragment")),
+              ("none-compute", ("cps.mode=none", "render.lighting=compute")),
+              ("black-mask", ("cps.mode=black-mask", "render.lighting=fragment")),
+              ("blur-mask", ("cps.mode=blur-mask", "render.lighting=fragment")),
+              ("cps-compute", ("cps.mode=cps", "render.lighting=compute")),
+              ("cps-fragment", ("cps.mode=cps", "render.lighting=fragment")))
+    runs = [Run(f"t1-{name}", *walk, sets, frames=0, stride=12, compare_every=4)
+            for name, sets in table1]
+    for level in range(1, 6):
+        for dispatch in ("multi", "single"):
+            runs.append(Run(f"t2-block{1 << level:02d}-{dispatch}", *walk,
+                            ("cps.mode=cps", "render.lighting=compute",
+                             f"cps.dispatch={dispatch}", f"cps.max_level={level}"),
+                            frames=0, stride=12))
+    filters = (("raw", ("cps.filter=none",)), ("bilinear", ("cps.filter=bilinear",)),
+               ("hierarchical", ("cps.filter=hierarchical",)),
+               ("hierarchical-temporal", ("cps.filter=hierarchical", "cps.temporal=true")),
+               ("hierarchical-temporal-noreproject",
+                ("cps.filter=hierarchical", "cps.temporal=true", "cps.reproject=false")))
+    for name, sets in filters:
+        runs.append(Run(f"err-{name}", *walk, ("cps.mode=cps", "render.lighting=fragment",
+                                               *sets), frames=120, compare_every=10))
+    return runs
+
+
+EXPERIMENTS = {"tcr": tcr_runs, "cps": cps_runs}
+
+
+def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
+    """Run every benchmark of an experiment (names containing ``only``, if given) into
+    ``out_dir``; returns the tables."""
+    out = Path(out_dir)
+    runs = [r for r in EXPERIMENTS[which]() if not only or only in r.name]
+    files = []
+    for index, run in enumerate(runs, start=1):
+        print(f"[{index}/{len(runs)}] {run.name}: {run.command()}", file=sys.stderr, flush=True)
+        settings = Settings()
+        settings.apply(list(run.sets))
+        result = bench(run.scene, parse_size(run.size), run.frames, settings, 5,
+                       resolve_path(run.path), None, run.compare_every, run.stride)
+        result["command"] = run.command()
+        target = out / f"{run.name}.json"
+        atomic_write_json(target, result)
+        files.append(target)
+        print(f"    {result['fps_median']:.2f} fps, {result['frame_ms']['median']:.1f} ms",
+              file=sys.stderr, flush=True)
+    groups = sorted({g for r in runs for g in r.groups})
+    return report(files, tuple(groups))

@@ -1,0 +1,391 @@
+"""Coarse pixel shading panel: mitigation mode, detail levels, edge rays, pipeline, temporal
+filter, the detail visualisation with its legend, and live statistics.
+
+Built on the settings model (every control writes through ``Settings.set``, keys ``cps.*``);
+the live part (share of pixels per level, lighting samples, edge-ray caps and distances) is
+polled from a ``stats()`` callable at 4 Hz, so the renderer never pushes into Qt.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from PyQt6.QtCore import QRectF, Qt, QTimer
+from PyQt6.QtGui import QColor, QPainter, QPen
+from PyQt6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDoubleSpinBox,
+    QFormLayout,
+    QGridLayout,
+    QGroupBox,
+    QLabel,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.settings import Settings, SettingsError
+
+try:
+    from render.passes import CPS_LEVEL_COLOURS
+except ImportError:  # the renderer's CPS pass not there yet: the paper's Fig. 2 colours
+    CPS_LEVEL_COLOURS = ((1.0, 1.0, 1.0), (0.15, 0.35, 1.0), (0.0, 0.9, 0.9), (0.1, 0.85, 0.1),
+                         (1.0, 0.95, 0.0), (1.0, 0.1, 0.1))
+
+log = logging.getLogger(__name__)
+
+LEVELS = 6  # s = 0..5: blocks of 1x1 .. 32x32 pixels
+#: Readable names of the choices; the choices themselves come from the settings model, so a mode
+#: added there shows up here (under its key until it gets a label).
+LABELS = {
+    "cps.mode": {"none": "No mitigation (full-rate lighting)",
+                 "none-fragment": "No mitigation (fragment shader)",
+                 "none-compute": "No mitigation (compute shader)",
+                 "black-mask": "Black mask (darkened periphery)",
+                 "blur-mask": "Blur mask (blurred periphery)",
+                 "cps": "Coarse pixel shading"},
+    "pipeline": {"fragment": "Fragment (graphics pipeline)", "compute": "Compute (the paper's)"},
+    "cps.dispatch": {"multi": "One dispatch per level", "single": "Single dispatch, 32x32 tiles"},
+    "cps.filter": {"none": "None (flat blocks)", "bilinear": "Bilinear",
+                   "hierarchical": "Hierarchical bilinear (paper)"},
+}
+#: Where the lighting runs: the CPS section's own key if the model has one, else the deferred
+#: lighting stage, which CPS follows.
+PIPELINE_KEYS = ("cps.pipeline", "render.lighting")
+SIDES = ("left", "right", "bottom")
+EYES = ("left eye", "right eye")
+NONE = "-"  # shown for a statistic the renderer did not report
+
+
+def block_label(level: int) -> str:
+    n = 1 << level
+    return f"{n}x{n}"
+
+
+def _qcolor(rgb: Sequence[float]) -> QColor:
+    r, g, b = (max(0, min(255, round(c * 255))) for c in rgb)
+    return QColor(r, g, b)
+
+
+class LevelShareBar(QWidget):
+    """A horizontal bar split into the share of pixels at each detail level, in legend colours."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.shares: list[float] | None = None
+        self.setMinimumSize(200, 18)
+        self.setMaximumHeight(22)
+
+    def set_shares(self, shares: list[float] | None) -> None:
+        if shares != self.shares:
+            self.shares = shares
+            self.update()
+
+    def paintEvent(self, event) -> None:
+        p = QPainter(self)
+        r = QRectF(0.5, 0.5, self.width() - 1.0, self.height() - 1.0)
+        p.fillRect(r, QColor(60, 60, 66))
+        if self.shares:
+            total = sum(self.shares) or 1.0
+            x = r.left()
+            for level, share in enumerate(self.shares):
+                w = r.width() * share / total
+                if w > 0:
+                    p.fillRect(QRectF(x, r.top(), w, r.height()),
+                               _qcolor(CPS_LEVEL_COLOURS[level]))
+                x += w
+        p.setPen(QPen(QColor(30, 30, 30), 1))
+        p.drawRect(r)
+        p.end()
+
+
+class CpsPanel(QWidget):
+    """Every ``cps.*`` setting as a control, the level legend, and the live CPS statistics.
+
+The pipeline control edits ``cps.pipeline`` where the model has it, else ``render.lighting``
+(the deferred lighting stage that CPS runs in); ``controls`` maps each key to its widget.
+
+    ``stats()`` returns a dict in which any key may be missing: ``level_share`` (6 fractions),
+    ``shaded_samples`` and ``full_samples`` (lighting evaluations last frame, and what full rate
+    would have cost), ``edge_caps`` and ``edge_distances`` ([[left, right, bottom]] per eye, the
+    level cap and the hit distance in metres, inf for no hit).
+    """
+
+    def __init__(self, settings: Settings, stats: Callable[[], dict],
+                 on_change: Callable[[str], None] | None = None, parent=None) -> None:
+        super().__init__(parent)
+        self.settings = settings
+        self.stats = stats
+        self.on_change = on_change
+        self.controls: dict[str, QWidget] = {}
+        self._stats_failed = False
+        layout = QVBoxLayout(self)
+
+        box = QGroupBox("Mitigation")
+        form = QFormLayout(box)
+        keys = settings.keys()
+        self.pipeline_key = next(k for k in PIPELINE_KEYS if k in keys)
+        self.mode = self._choice_combo("cps.mode")
+        form.addRow("mode", self.mode)
+        layout.addWidget(box)
+
+        box = QGroupBox("Detail levels")
+        form = QFormLayout(box)
+        self.max_level = self._combo("cps.max_level",
+                                     [(s, block_label(s)) for s in range(LEVELS)])
+        form.addRow("coarsest block", self.max_level)
+        self.fovea = self._spin("cps.fovea_deg", " deg", 1, 1.0)
+        form.addRow("fovea radius", self.fovea)
+        self.falloff = self._spin("cps.deg_per_level", " deg/level", 1, 1.0)
+        form.addRow("falloff", self.falloff)
+        layout.addWidget(box)
+
+        box = QGroupBox("Edge rays")
+        form = QFormLayout(box)
+        self.near = self._spin("cps.near_m", " m", 2, 0.25)
+        form.addRow("near (coarsest)", self.near)
+        self.far = self._spin("cps.far_m", " m", 2, 0.25)
+        form.addRow("far (no reduction)", self.far)
+        self.rays = QSpinBox()
+        self._limits(self.rays, "cps.rays_per_side")
+        self.rays.setKeyboardTracking(False)
+        self.rays.valueChanged.connect(lambda v: self._set("cps.rays_per_side", v))
+        self._register("cps.rays_per_side", self.rays)
+        form.addRow("rays per side", self.rays)
+        layout.addWidget(box)
+
+        box = QGroupBox("Coarse shading")
+        form = QFormLayout(box)
+        self.pipeline = self._choice_combo(self.pipeline_key, LABELS["pipeline"])
+        form.addRow("pipeline", self.pipeline)
+        self.dispatch = self._choice_combo("cps.dispatch")
+        form.addRow("dispatch", self.dispatch)
+        self.filter = self._choice_combo("cps.filter")
+        form.addRow("filter", self.filter)
+        layout.addWidget(box)
+
+        box = QGroupBox("Alternating temporal filter")
+        form = QFormLayout(box)
+        self.temporal = self._check("cps.temporal", "on")
+        form.addRow("temporal", self.temporal)
+        self.reproject = self._check("cps.reproject", "reproject history")
+        form.addRow("history", self.reproject)
+        self.history = self._spin("cps.history_weight", "", 2, 0.05)
+        form.addRow("finer image weight", self.history)
+        layout.addWidget(box)
+
+        box = QGroupBox("Detail visualisation")
+        grid = QGridLayout(box)
+        self.visualize = self._check("cps.visualize", "tint pixels by detail level")
+        grid.addWidget(self.visualize, 0, 0, 1, 6)
+        for level, colour in enumerate(CPS_LEVEL_COLOURS[:LEVELS]):
+            swatch = QLabel()
+            swatch.setFixedSize(18, 14)
+            r, g, b = (round(c * 255) for c in colour)
+            swatch.setStyleSheet(f"background: rgb({r},{g},{b}); border: 1px solid #444")
+            swatch.setToolTip(f"level {level}")
+            row, col = 1 + level // 3, (level % 3) * 2
+            grid.addWidget(swatch, row, col)
+            text = f"{block_label(level)} (unpainted)" if level == 0 else block_label(level)
+            grid.addWidget(QLabel(text), row, col + 1)
+        layout.addWidget(box)
+
+        box = QGroupBox("Live")
+        live = QGridLayout(box)
+        live.addWidget(QLabel("pixels per level"), 0, 0, 1, 4)
+        self.share_bar = LevelShareBar()
+        live.addWidget(self.share_bar, 1, 0, 1, 4)
+        self.share_label = QLabel(NONE)
+        live.addWidget(self.share_label, 2, 0, 1, 4)
+        live.addWidget(QLabel("lighting samples"), 3, 0)
+        self.samples_label = QLabel(NONE)
+        live.addWidget(self.samples_label, 3, 1, 1, 3)
+        live.addWidget(QLabel("edge rays: coarsest block allowed / nearest hit"), 4, 0, 1, 4)
+        for col, side in enumerate(SIDES, start=1):
+            live.addWidget(QLabel(side), 5, col)
+        self.edge_labels: list[list[QLabel]] = []
+        for row, eye in enumerate(EYES, start=6):
+            live.addWidget(QLabel(eye), row, 0)
+            cells = []
+            for col in range(1, len(SIDES) + 1):
+                cell = QLabel(NONE)
+                cell.setToolTip("level cap of that side / distance of the nearest edge-ray hit")
+                live.addWidget(cell, row, col)
+                cells.append(cell)
+            self.edge_labels.append(cells)
+        for label in (self.share_label, self.samples_label):
+            label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        layout.addWidget(box)
+        layout.addStretch(1)
+
+        self.refresh()
+        self.poll()
+        self.timer = QTimer(self)
+        self.timer.timeout.connect(self.poll)
+        self.timer.start(250)
+
+    # -- building ------------------------------------------------------------------------------
+
+    def _register(self, key: str, widget: QWidget) -> None:
+        self.controls[key] = widget
+        widget.setToolTip(str(self.settings.describe(key).get("help", "")))
+
+    def _limits(self, spin: QSpinBox | QDoubleSpinBox, key: str) -> None:
+        meta = self.settings.describe(key)
+        lo = meta.get("lo")
+        hi = meta.get("hi")
+        spin.setRange(lo if lo is not None else -1e9, hi if hi is not None else 1e9)
+
+    def _combo(self, key: str, items: Sequence[tuple[Any, str]]) -> QComboBox:
+        w = QComboBox()
+        for value, text in items:
+            w.addItem(text, value)
+        w.currentIndexChanged.connect(lambda i, k=key, c=w: self._set(k, c.itemData(i)))
+        self._register(key, w)
+        return w
+
+    def _choice_combo(self, key: str, labels: dict[str, str] | None = None) -> QComboBox:
+        names = LABELS.get(key, {}) if labels is None else labels
+        choices = self.settings.describe(key).get("choices") or ()
+        return self._combo(key, [(c, names.get(c, c)) for c in choices])
+
+    def _spin(self, key: str, suffix: str, decimals: int, step: float) -> QDoubleSpinBox:
+        w = QDoubleSpinBox()
+        w.setDecimals(decimals)
+        self._limits(w, key)
+        w.setSingleStep(step)
+        w.setSuffix(suffix)
+        w.setKeyboardTracking(False)  # one change per finished edit, not per keystroke
+        w.valueChanged.connect(lambda v, k=key: self._set(k, v))
+        self._register(key, w)
+        return w
+
+    def _check(self, key: str, text: str) -> QCheckBox:
+        w = QCheckBox(text)
+        w.toggled.connect(lambda v, k=key: self._set(k, v))
+        self._register(key, w)
+        return w
+
+    # -- model <-> widgets ---------------------------------------------------------------------
+
+    def _set(self, key: str, value: object) -> None:
+        try:
+            self.settings.set(key, value)
+        except SettingsError as exc:
+            log.warning("%s", exc)  # a value the model refuses: show the model's value again
+            self.refresh()
+            return
+        self.refresh()
+        if self.on_change:
+            self.on_change(key)
+
+    def refresh(self) -> None:
+        """Show the model's values (after a change here, a preset load, or the CLI)."""
+        c = self.settings.cps
+        widgets = list(self.controls.values())
+        for w in widgets:
+            w.blockSignals(True)
+        try:
+            for combo, value in ((self.mode, c.mode), (self.max_level, c.max_level),
+                                 (self.pipeline, self.settings.get(self.pipeline_key)),
+                                 (self.dispatch, c.dispatch), (self.filter, c.filter)):
+                combo.setCurrentIndex(combo.findData(value))
+            self.fovea.setValue(c.fovea_deg)
+            self.falloff.setValue(c.deg_per_level)
+            self.near.setValue(c.near_m)
+            self.far.setValue(c.far_m)
+            self.rays.setValue(c.rays_per_side)
+            self.temporal.setChecked(c.temporal)
+            self.reproject.setChecked(c.reproject)
+            self.history.setValue(c.history_weight)
+            self.visualize.setChecked(c.visualize)
+        finally:
+            for w in widgets:
+                w.blockSignals(False)
+        # Controls that mean nothing in the current configuration are greyed out, not hidden.
+        self.dispatch.setEnabled(self.settings.get(self.pipeline_key) == "compute")
+        self.reproject.setEnabled(c.temporal)
+        self.history.setEnabled(c.temporal)
+
+    def poll(self) -> None:
+        """Read the live statistics (called by the 4 Hz timer)."""
+        try:
+            data = self.stats() or {}
+            if not isinstance(data, dict):
+                raise TypeError(f"stats() returned {type(data).__name__}, not a dict")
+        except Exception as exc:  # noqa: BLE001 - a failing source must not break the UI
+            if not self._stats_failed:
+                log.warning("CPS statistics unavailable: %s", exc)
+                self._stats_failed = True
+            data = {}
+        shares = _shares(data.get("level_share"))
+        self.share_bar.set_shares(shares)
+        if shares is None:
+            self.share_label.setText(NONE)
+        else:
+            parts = [f"{block_label(s)}\u00a0{100 * v:.0f}%" for s, v in enumerate(shares)]
+            self.share_label.setText("   ".join(parts[:3]) + "\n" + "   ".join(parts[3:]))
+        self.samples_label.setText(_samples_text(data.get("shaded_samples"),
+                                                 data.get("full_samples")))
+        caps, dists = data.get("edge_caps"), data.get("edge_distances")
+        for eye, cells in enumerate(self.edge_labels):
+            for side, cell in enumerate(cells):
+                cell.setText(_edge_text(_item(caps, eye, side), _item(dists, eye, side)))
+
+
+# -- formatting (any statistic may be missing or malformed: then it shows "-") -----------------
+
+
+def _number(value: Any) -> float | None:
+    if isinstance(value, bool):
+        return None
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(out) else out
+
+
+def _shares(value: Any) -> list[float] | None:
+    try:
+        shares = [_number(v) for v in value]
+    except TypeError:
+        return None
+    if len(shares) != LEVELS or any(v is None or v < 0 or math.isinf(v) for v in shares):
+        return None
+    return [float(v) for v in shares]  # type: ignore[arg-type]
+
+
+def _samples_text(shaded: Any, full: Any) -> str:
+    s, f = _number(shaded), _number(full)
+    if s is None or math.isinf(s):
+        return NONE
+    text = f"{int(s):,}"
+    if f is not None and math.isfinite(f) and f > 0:
+        text += f" of {int(f):,} ({100 * s / f:.1f}%)"
+    return text
+
+
+def _item(grid: Any, eye: int, side: int) -> Any:
+    try:
+        return grid[eye][side]
+    except (TypeError, IndexError, KeyError):
+        return None
+
+
+def _edge_text(cap: Any, dist: Any) -> str:
+    c, d = _number(cap), _number(dist)
+    if c is None and d is None:
+        return NONE
+    cap_text = NONE if c is None or not 0 <= c < LEVELS else block_label(int(c))
+    if d is None:
+        dist_text = NONE
+    elif math.isinf(d):
+        dist_text = "none"
+    else:
+        dist_text = f"{d:.2f} m"
+    return f"{cap_text} / {dist_text}"
