@@ -184,3 +184,44 @@ def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, 
     # Half the light: the quad is darker by 15+ of 255 levels everywhere on average (the tone
     # curve's shoulder keeps it from halving on screen).
     assert dim_full[quad].mean() < bright_full[quad].mean() - 15
+
+
+def test_cps_panel_drives_the_model_the_picture_and_shows_live_statistics(window, qtbot):
+    panel, s = window.cps_panel, window.settings
+    window.load("showroom")
+    window.wait_for_load()
+    full = grab(window)
+    # One control for the mitigation modes: CPS in the graphics pipeline.
+    index = next(i for i in range(panel.mode.count())
+                 if panel.mode.itemData(i) == ("cps", "fragment"))
+    panel.mode.setCurrentIndex(index)
+    assert s.cps.mode == "cps" and s.render.lighting == "fragment"
+    assert not panel.dispatch.isEnabled()  # dispatch only means something in compute
+    qtbot.waitUntil(lambda: len(window.session.edge) == 2, timeout=5000)
+    coarse = grab(window)
+    assert np.abs(coarse.astype(int) - full.astype(int)).mean() > 0.5
+    panel.visualize.setChecked(True)
+    assert s.cps.visualize
+    painted = grab(window).astype(int)
+    # Coarse levels are painted blue, cyan, green, yellow or red: much more colourful.
+    chroma = lambda img: (img.max(axis=2) - img.min(axis=2)).mean()  # noqa: E731
+    assert chroma(painted) > chroma(coarse.astype(int)) + 20
+    panel.max_level.setCurrentIndex(panel.max_level.findData(2))
+    assert s.cps.max_level == 2
+    grab(window)  # a frame with the new maximum
+    panel.poll()
+    stats = window._cps_stats()
+    shares = stats["level_share"]
+    assert abs(sum(shares) - 1.0) < 1e-6 and shares[3:] == [0.0, 0.0, 0.0]
+    assert 0 < stats["shaded_samples"] < stats["full_samples"]
+    assert "%" in panel.share_label.text() and panel.samples_label.text() != "-"
+    assert len(stats["edge_caps"]) == 2 and all(len(e) == 3 for e in stats["edge_caps"])
+    # The compute pipeline enables the dispatch choice; "none" restores the full-rate picture.
+    index = next(i for i in range(panel.mode.count())
+                 if panel.mode.itemData(i) == ("cps", "compute"))
+    panel.mode.setCurrentIndex(index)
+    assert s.render.lighting == "compute" and panel.dispatch.isEnabled()
+    panel.visualize.setChecked(False)
+    panel.mode.setCurrentIndex(0)
+    assert (s.cps.mode, s.render.lighting) == ("none", "fragment")
+    assert np.abs(grab(window).astype(int) - full.astype(int)).mean() < 0.5

@@ -42,17 +42,20 @@ LEVELS = 6  # s = 0..5: blocks of 1x1 .. 32x32 pixels
 #: Readable names of the choices; the choices themselves come from the settings model, so a mode
 #: added there shows up here (under its key until it gets a label).
 LABELS = {
-    "cps.mode": {"none": "No mitigation (full-rate lighting)",
-                 "none-fragment": "No mitigation (fragment shader)",
-                 "none-compute": "No mitigation (compute shader)",
-                 "black-mask": "Black mask (darkened periphery)",
-                 "blur-mask": "Blur mask (blurred periphery)",
-                 "cps": "Coarse pixel shading"},
     "pipeline": {"fragment": "Fragment (graphics pipeline)", "compute": "Compute (the paper's)"},
     "cps.dispatch": {"multi": "One dispatch per level", "single": "Single dispatch, 32x32 tiles"},
     "cps.filter": {"none": "None (flat blocks)", "bilinear": "Bilinear",
                    "hierarchical": "Hierarchical bilinear (paper)"},
 }
+#: The mitigation control: (cps.mode, lighting stage or None for "as it is"), label.
+MITIGATIONS = (
+    (("none", "fragment"), "None, fragment shader (the baseline)"),
+    (("none", "compute"), "None, compute shader"),
+    (("black-mask", None), "Black mask (darkened periphery)"),
+    (("blur-mask", None), "Blur mask (blurred periphery)"),
+    (("cps", "fragment"), "Coarse pixel shading, graphics pipeline"),
+    (("cps", "compute"), "Coarse pixel shading, compute (the paper's)"),
+)
 #: Where the lighting runs: the CPS section's own key if the model has one, else the deferred
 #: lighting stage, which CPS follows.
 PIPELINE_KEYS = ("cps.pipeline", "render.lighting")
@@ -129,7 +132,13 @@ The pipeline control edits ``cps.pipeline`` where the model has it, else ``rende
         form = QFormLayout(box)
         keys = settings.keys()
         self.pipeline_key = next(k for k in PIPELINE_KEYS if k in keys)
-        self.mode = self._choice_combo("cps.mode")
+        # The paper's five modes on one control (plus CPS in either pipeline): each entry sets
+        # cps.mode and, where it matters, the lighting stage (render.lighting).
+        self.mode = QComboBox()
+        for data, text in MITIGATIONS:
+            self.mode.addItem(text, data)
+        self.mode.currentIndexChanged.connect(self._set_mitigation)
+        self._register("cps.mode", self.mode)
         form.addRow("mode", self.mode)
         layout.addWidget(box)
 
@@ -283,6 +292,21 @@ The pipeline control edits ``cps.pipeline`` where the model has it, else ``rende
         if self.on_change:
             self.on_change(key)
 
+    def _set_mitigation(self, index: int) -> None:
+        mode, lighting = self.mode.itemData(index)
+        if lighting is not None and self.settings.get(self.pipeline_key) != lighting:
+            self.settings.set(self.pipeline_key, lighting)
+            if self.on_change:
+                self.on_change(self.pipeline_key)
+        self._set("cps.mode", mode)
+
+    def _mitigation_index(self) -> int:
+        mode, lighting = self.settings.cps.mode, self.settings.get(self.pipeline_key)
+        for i, (m, stage) in enumerate(data for data, _ in MITIGATIONS):
+            if m == mode and stage in (None, lighting):
+                return i
+        return -1
+
     def refresh(self) -> None:
         """Show the model's values (after a change here, a preset load, or the CLI)."""
         c = self.settings.cps
@@ -290,7 +314,8 @@ The pipeline control edits ``cps.pipeline`` where the model has it, else ``rende
         for w in widgets:
             w.blockSignals(True)
         try:
-            for combo, value in ((self.mode, c.mode), (self.max_level, c.max_level),
+            self.mode.setCurrentIndex(self._mitigation_index())
+            for combo, value in ((self.max_level, c.max_level),
                                  (self.pipeline, self.settings.get(self.pipeline_key)),
                                  (self.dispatch, c.dispatch), (self.filter, c.filter)):
                 combo.setCurrentIndex(combo.findData(value))
