@@ -28,6 +28,7 @@ from render.passes import (
     FrameContext,
     RenderPass,
     _scene_uniforms,
+    use_tiles,
 )
 from render.shaders import ShaderLibrary
 
@@ -191,11 +192,12 @@ class CpsLightingPass(CpsPass):
         assert cf is not None
         frame.scene.light_buffer.bind_to_uniform_block(0)
         compute = self.stage == "compute"
+        tiled = {"TILED_LIGHTS": frame.culled}
         if compute:
             prog = self.shaders.compute("cps_lighting.comp.glsl",
-                                        {"MULTI_LEVEL": self.dispatch == "multi"})
+                                        {"MULTI_LEVEL": self.dispatch == "multi", **tiled})
         else:
-            prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl")
+            prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl", tiled)
         _scene_uniforms(prog, frame)
         prog["u_background"].value = BACKGROUND
         max_level = int(min(max(cf.settings.max_level, 0), MAX_LEVEL))
@@ -208,6 +210,7 @@ class CpsLightingPass(CpsPass):
             cps.levels.use(4)
             prog["u_gb_albedo"].value, prog["u_gb_normal"].value = 1, 2
             prog["u_gb_depth"].value, prog["u_levels"].value = 3, 4
+            use_tiles(prog, frame, tgt)
             prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
             prog["u_eye"].value = tuple(eye.position)
             prog["u_size"].value = (w, h)
@@ -317,10 +320,11 @@ class CpsTemporalPass(CpsPass):
             prog["u_current"].value, prog["u_history"].value, prog["u_gb_depth"].value = 5, 6, 3
             prog["u_levels"].value = 4
             prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
-            prog["u_prev_view_projection"].write(gl_bytes(cps.prev_view_projection))
             prog["u_eye"].value = tuple(eye.position)
-            prog["u_prev_eye"].value = tuple(float(v) for v in cps.prev_eye)
             prog["u_size"].value = tgt.size
+            if "u_prev_view_projection" in prog:  # reprojection only
+                prog["u_prev_view_projection"].write(gl_bytes(cps.prev_view_projection))
+                prog["u_prev_eye"].value = tuple(float(v) for v in cps.prev_eye)
             w = float(s.history_weight)
             prog["u_current_weight"].value = w if weak else 1.0 - w
             prog["u_has_history"].value = int(cps.has_history)

@@ -19,6 +19,9 @@ from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
 BACKGROUND = (0.02, 0.02, 0.025)
+LIGHT_TILE = 16  # must match light_tiles.glsl
+MAX_PER_TILE = 128
+ALL_LIGHTS = 65535
 
 
 class EyeTargets:
@@ -35,9 +38,16 @@ class EyeTargets:
             t.repeat_x = t.repeat_y = False
         self.gbuffer = ctx.framebuffer([self.albedo, self.normal], self.depth)
         self.forward = ctx.framebuffer([self.color], self.depth)
+        # Tiled light culling: a light count per 16x16 tile and each tile's list of lights.
+        self.tiles = (-(-width // LIGHT_TILE), -(-height // LIGHT_TILE))
+        self.tile_counts = ctx.texture(self.tiles, 1, dtype="u2")
+        self.tile_lists = ctx.texture((self.tiles[0] * MAX_PER_TILE, self.tiles[1]), 1, dtype="u2")
+        for t in (self.tile_counts, self.tile_lists):
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
     def release(self) -> None:
-        for obj in (self.gbuffer, self.forward, self.albedo, self.normal, self.depth, self.color):
+        for obj in (self.gbuffer, self.forward, self.albedo, self.normal, self.depth, self.color,
+                    self.tile_counts, self.tile_lists):
             obj.release()
 
 
@@ -71,6 +81,7 @@ class FrameContext:
     levels: list[int] | None = None  # TCR level per mesh (None: full quality)
     tcr_mode: str = "clamp"
     tint: bool = False
+    culled: bool = False  # tiled light lists are ready (LightCullPass ran this frame)
     level_maps: list[moderngl.Texture] | None = None  # CPS detail visualisation, per eye
     markers: list[list[tuple[int, int]]] | None = None  # per eye, pixels from the bottom-left
 
@@ -180,10 +191,11 @@ class LightingPass(RenderPass):
 
     def execute(self, frame: FrameContext) -> None:
         frame.scene.light_buffer.bind_to_uniform_block(0)
+        tiled = {"TILED_LIGHTS": frame.culled}
         if self.stage == "compute":
-            prog = self.shaders.compute("lighting.comp.glsl")
+            prog = self.shaders.compute("lighting.comp.glsl", tiled)
         else:
-            prog = self.shaders.program("fullscreen.vert.glsl", "lighting.frag.glsl")
+            prog = self.shaders.program("fullscreen.vert.glsl", "lighting.frag.glsl", tiled)
         _scene_uniforms(prog, frame)
         prog["u_background"].value = BACKGROUND
         self.samples = 0
@@ -194,6 +206,7 @@ class LightingPass(RenderPass):
             tgt.depth.use(3)
             prog["u_gb_albedo"].value, prog["u_gb_normal"].value = 1, 2
             prog["u_gb_depth"].value = 3
+            use_tiles(prog, frame, tgt)
             prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
             prog["u_eye"].value = tuple(eye.position)
             prog["u_size"].value = (w, h)
@@ -207,6 +220,59 @@ class LightingPass(RenderPass):
         if self.stage == "compute":
             self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
                                     | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+
+def use_tiles(prog: moderngl.Program, frame: FrameContext, tgt: EyeTargets) -> None:
+    """Bind this eye's tiled light lists (units 6 and 7) when the program reads them."""
+    if frame.culled and "u_tile_counts" in prog:
+        tgt.tile_counts.use(6)
+        tgt.tile_lists.use(7)
+        prog["u_tile_counts"].value, prog["u_tile_lists"].value = 6, 7
+
+
+class LightCullPass(RenderPass):
+    """Per eye and 16x16 tile, the lights that can reach the tile's pixels (by range).
+
+    Lighting then evaluates only those: in a 100-light room most lights cannot reach most of
+    what one tile shows. ``evaluations()`` reports the light evaluations with and without."""
+
+    name = "light_cull"
+
+    def execute(self, frame: FrameContext) -> None:
+        prog = self.shaders.compute("light_cull.comp.glsl")
+        frame.scene.light_buffer.bind_to_uniform_block(0)
+        prog["u_light_count"].value = len(frame.scene.lights)
+        for eye, tgt in zip(frame.eyes, frame.targets):
+            tgt.depth.use(3)
+            prog["u_gb_depth"].value = 3
+            tgt.tile_counts.bind_to_image(1, read=False, write=True)
+            tgt.tile_lists.bind_to_image(2, read=False, write=True)
+            prog["u_view"].write(gl_bytes(eye.view))
+            prog["u_inv_projection"].write(gl_bytes(np.linalg.inv(eye.projection)))
+            prog["u_size"].value = tgt.size
+            prog.run(*tgt.tiles)
+        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
+                                | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+    @staticmethod
+    def evaluations(targets: list[EyeTargets], light_count: int) -> dict[str, int]:
+        """Light evaluations of full-rate lighting last frame: with the tile lists, and with
+        every light at every lit pixel (read back: on request only)."""
+        culled = everything = 0
+        for tgt in targets:
+            w, h = tgt.size
+            depth = np.frombuffer(tgt.depth.read(), np.float32).reshape(h, w)
+            lit = depth < 1.0
+            tx, ty = tgt.tiles
+            pad = np.zeros((ty * LIGHT_TILE, tx * LIGHT_TILE), bool)
+            pad[:h, :w] = lit
+            per_tile = pad.reshape(ty, LIGHT_TILE, tx, LIGHT_TILE).sum(axis=(1, 3))
+            counts = np.frombuffer(tgt.tile_counts.read(alignment=1), np.uint16)
+            counts = counts.reshape(ty, tx).astype(np.int64)
+            counts[counts == ALL_LIGHTS] = light_count
+            culled += int((counts * per_tile).sum())
+            everything += int(lit.sum()) * light_count
+        return {"culled": culled, "all": everything}
 
 
 class EmissivePass(RenderPass):

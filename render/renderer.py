@@ -32,6 +32,7 @@ from render.passes import (
     ForwardPass,
     FrameContext,
     GBufferPass,
+    LightCullPass,
     LightingPass,
     ObjectIdPass,
     OverlayPass,
@@ -61,10 +62,11 @@ class Renderer:
         self.cps_filter = CpsFilterPass(ctx, self.shaders, self.cps)
         self.cps_temporal = CpsTemporalPass(ctx, self.shaders, self.cps)
         self.cps_mask = CpsMaskPass(ctx, self.shaders, self.cps)
+        self.light_cull = LightCullPass(ctx, self.shaders)
         self.passes: list[RenderPass] = [
-            self.gbuffer, self.cps_levels, self.lighting, self.cps_lighting, self.cps_filter,
-            self.cps_temporal, self.cps_mask, self.emissive, self.forward, self.present,
-            self.overlay]
+            self.gbuffer, self.light_cull, self.cps_levels, self.lighting, self.cps_lighting,
+            self.cps_filter, self.cps_temporal, self.cps_mask, self.emissive, self.forward,
+            self.present, self.overlay]
         self.gpu_scene: GpuScene | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
@@ -115,6 +117,8 @@ class Renderer:
         self.forward.enabled = not deferred
         self.lighting.stage = r.lighting
         cps = self._configure_cps(frame, deferred)
+        scene_lights = len((self.gpu_scene or self._empty).lights)
+        self.light_cull.enabled = deferred and r.light_culling and scene_lights > 0
         self.overlay.enabled = True
         self.overlay.show_text = r.overlay
         ctx = FrameContext(
@@ -122,7 +126,8 @@ class Renderer:
             light_scale=r.brightness, ambient=r.ambient * r.brightness, exposure=r.exposure,
             out=out, out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed,
             levels=frame.levels if self.settings.tcr.enabled else None,
-            tcr_mode=self.settings.tcr.mode, tint=self.settings.tcr.tint)
+            tcr_mode=self.settings.tcr.mode, tint=self.settings.tcr.tint,
+            culled=self.light_cull.enabled)
         if cps.visualize and self.cps_levels.enabled:
             ctx.level_maps = [e.levels for e in self.cps.eyes]
             ctx.markers = _project_hits(frame)
@@ -208,6 +213,13 @@ class Renderer:
             return int(self.cps_stats().get("shaded_samples", 0))
         stage = self.lighting if self.lighting.enabled else self.forward
         return int(stage.samples)
+
+    def light_evaluations(self) -> dict[str, int]:
+        """Full-rate light evaluations last frame with the tile lists and without (deferred
+        path; {} when culling is off or the path is forward)."""
+        if not self.light_cull.enabled or not self.targets:
+            return {}
+        return LightCullPass.evaluations(self.targets, len(self.gpu_scene.lights))
 
     def texture_resident_bytes(self) -> int:
         return self.gpu_scene.texture_bytes if self.gpu_scene is not None else 0

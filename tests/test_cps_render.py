@@ -250,3 +250,25 @@ def test_temporal_filter_alternates_the_eyes_and_keeps_the_fovea(host, scene):
     with host.ctx:
         fovea = np.hstack(host.renderer.cps.read_levels()) == 0
     assert np.array_equal(test[fovea], full[fovea])
+
+
+@pytest.mark.parametrize("reproject", [True, False])
+def test_temporal_filter_on_a_still_view_blends_towards_the_finer_image(host, scene, reproject):
+    """A still camera: history and the new frame show the same surfaces, so with or without
+    reprojection each coarse pixel is the weighted mix of this frame and the last one."""
+    configure(host)
+    fi = frame(host, scene)
+    full = host.draw(fi).astype(float)
+    configure(host, cps__mode="cps", cps__temporal=True, cps__reproject=reproject,
+              cps__max_level=4)
+    for _ in range(4):
+        out = host.draw(fi).astype(float)
+    assert not host.renderer.errors
+    with host.ctx:
+        coarse = np.hstack(host.renderer.cps.read_levels()) > 0
+    configure(host, cps__mode="cps", cps__max_level=4)
+    plain = host.draw(fi).astype(float)
+    # Blending in the finer frame brings the periphery closer to full rate than CPS alone.
+    err_temporal = np.abs(out - full)[coarse].mean()
+    err_plain = np.abs(plain - full)[coarse].mean()
+    assert err_temporal < err_plain

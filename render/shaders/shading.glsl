@@ -13,6 +13,18 @@ layout(std140, binding = 0) uniform Lights {
 };
 
 uniform int u_light_count;
+
+#ifdef TILED_LIGHTS
+// The lights of this pixel's tile (light_cull.comp.glsl); the caller sets the tile first.
+#include "light_tiles.glsl"
+uniform usampler2D u_tile_counts;
+uniform usampler2D u_tile_lists;
+ivec2 g_tile = ivec2(0);
+
+void use_tile_of(ivec2 pixel) {
+    g_tile = pixel / LIGHT_TILE;
+}
+#endif
 uniform float u_light_scale;  // brightness setting times exposure-independent scale
 uniform float u_ambient;
 
@@ -29,7 +41,16 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
     float shininess = exp2(10.0 * (1.0 - roughness) + 1.0);
     float spec_norm = (shininess + 8.0) / (8.0 * PI);
     vec3 sum = u_ambient * albedo;
+#ifdef TILED_LIGHTS
+    uint tile_count = texelFetch(u_tile_counts, g_tile, 0).r;
+    bool every = tile_count == ALL_LIGHTS;
+    int count = every ? u_light_count : int(tile_count);
+    for (int k = 0; k < count; ++k) {
+        int i = every ? k : int(texelFetch(u_tile_lists,
+                                            ivec2(g_tile.x * MAX_PER_TILE + k, g_tile.y), 0).r);
+#else
     for (int i = 0; i < u_light_count; ++i) {
+#endif
         vec3 toL = light_position_range[i].xyz - P;
         float d2 = dot(toL, toL);
         float range = light_position_range[i].w;
