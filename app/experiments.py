@@ -71,13 +71,19 @@ def cps_runs() -> list[Run]:
               ("blur-mask", ("cps.mode=blur-mask", "render.lighting=fragment")),
               ("cps-compute", ("cps.mode=cps", "render.lighting=compute")),
               ("cps-fragment", ("cps.mode=cps", "render.lighting=fragment")))
-    runs = [Run(f"t1-{name}", *walk, sets, frames=0, stride=12, compare_every=4)
+    # As in the paper every light is evaluated at every pixel (light culling off); then the
+    # baseline and CPS once more with tiled light culling, which this app adds.
+    paper = ("render.light_culling=false",)
+    runs = [Run(f"t1-{name}", *walk, (*sets, *paper), frames=0, stride=12, compare_every=4)
             for name, sets in table1]
+    runs += [Run(f"t1c-{name}", *walk, (*sets, "render.light_culling=true"), frames=0,
+                 stride=12, compare_every=4)
+             for name, sets in table1 if name in ("none-fragment", "cps-fragment")]
     for level in range(1, 6):
         for dispatch in ("multi", "single"):
             runs.append(Run(f"t2-block{1 << level:02d}-{dispatch}", *walk,
                             ("cps.mode=cps", "render.lighting=compute",
-                             f"cps.dispatch={dispatch}", f"cps.max_level={level}"),
+                             f"cps.dispatch={dispatch}", f"cps.max_level={level}", *paper),
                             frames=0, stride=12))
     filters = (("raw", ("cps.filter=none",)), ("bilinear", ("cps.filter=bilinear",)),
                ("hierarchical", ("cps.filter=hierarchical",)),
@@ -87,6 +93,12 @@ def cps_runs() -> list[Run]:
     for name, sets in filters:
         runs.append(Run(f"err-{name}", *walk, ("cps.mode=cps", "render.lighting=fragment",
                                                *sets), frames=120, compare_every=10))
+    # The temporal filter when frames are 0.1 s apart (10 fps, about what this machine shows):
+    # the history lags 25 cm of walking, which reprojection has to undo.
+    for name, sets in filters[3:]:
+        runs.append(Run(f"err10fps-{name}", *walk, ("cps.mode=cps", "render.lighting=fragment",
+                                                    *sets), frames=60, stride=6,
+                        compare_every=5))
     return runs
 
 

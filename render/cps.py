@@ -66,6 +66,46 @@ def gaze_view_dir(eye: EyeView, gaze: tuple[float, float]) -> tuple[float, float
     return float(d[0]), float(d[1]), float(d[2])
 
 
+def fovea_rect(eye: EyeView, gaze: tuple[float, float], caps: tuple[float, float, float],
+               s: CpsSettings) -> tuple[int, int, int, int] | None:
+    """A pixel rectangle (x, y, w, h from the bottom-left) holding every full-rate (level 0)
+    pixel of this eye, or None when that can be anywhere.
+
+    With both side caps at least 1 the cap is >= 1 everywhere, so a pixel stays at level 0
+    only if its 2x2 block's centre lies within the fovea: inside a cone of fovea_deg around
+    the gaze ray (plus a degree and a few pixels of margin). The fragment pipeline's level-0
+    pass is scissored to it: a full-screen pass that discards nearly everything is not free on
+    llvmpipe.
+    """
+    if s.max_level < 1 or min(caps[0], caps[1]) < 1:
+        return None
+    half = math.radians(s.fovea_deg + 1.0)
+    if not math.isfinite(half) or half >= math.radians(75.0):
+        return None
+    g = np.array(gaze_view_dir(eye, gaze))
+    a = np.cross(g, (0.0, 1.0, 0.0))
+    if np.linalg.norm(a) < 1e-6:
+        a = np.cross(g, (1.0, 0.0, 0.0))
+    a /= np.linalg.norm(a)
+    b = np.cross(g, a)
+    t = np.linspace(0.0, 2.0 * math.pi, 64, endpoint=False)
+    dirs = (math.cos(half) * g[None, :]
+            + math.sin(half) * (np.cos(t)[:, None] * a + np.sin(t)[:, None] * b))
+    if (dirs[:, 2] >= -1e-3).any():  # part of the cone is beside or behind the eye
+        return None
+    clip = np.c_[dirs, np.ones(len(dirs))] @ eye.projection.T
+    ndc = clip[:, :2] / clip[:, 3:4]
+    px = (ndc * 0.5 + 0.5) * np.array([eye.width, eye.height])
+    margin = 4 + 0.02 * max(eye.width, eye.height)  # chords between the samples, 2x2 blocks
+    x0 = max(0, int(math.floor(px[:, 0].min() - margin)))
+    y0 = max(0, int(math.floor(px[:, 1].min() - margin)))
+    x1 = min(eye.width, int(math.ceil(px[:, 0].max() + margin)))
+    y1 = min(eye.height, int(math.ceil(px[:, 1].max() + margin)))
+    if x1 <= x0 or y1 <= y0:
+        return (0, 0, 0, 0)
+    return (x0, y0, x1 - x0, y1 - y0)
+
+
 def detail_uniforms(prog: moderngl.Program, eye: EyeView, gaze: tuple[float, float],
                     caps: tuple[float, float, float], s: CpsSettings) -> None:
     prog["u_size"].value = (eye.width, eye.height)
@@ -202,7 +242,8 @@ class CpsLightingPass(CpsPass):
         prog["u_background"].value = BACKGROUND
         max_level = int(min(max(cf.settings.max_level, 0), MAX_LEVEL))
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for eye, tgt, cps in zip(frame.eyes, frame.targets, self.state.eyes):
+        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets,
+                                                     self.state.eyes)):
             w, h = tgt.size
             tgt.albedo.use(1)
             tgt.normal.use(2)
@@ -228,9 +269,13 @@ class CpsLightingPass(CpsPass):
                 for s in range(max_level + 1):
                     ox, oy = cps.atlas_offsets[s]
                     cps.atlas_fbo.viewport = (ox, oy, -(-w // (1 << s)), -(-h // (1 << s)))
+                    # Level 0 lies in the fovea: the full-size pass only covers that.
+                    cps.atlas_fbo.scissor = fovea_rect(eye, frame.gaze, cf.caps[index],
+                                                       cf.settings) if s == 0 else None
                     prog["u_level"].value = s
                     prog["u_atlas_offset"].value = (ox, oy)
                     self.fullscreen(prog)
+                cps.atlas_fbo.scissor = None
         if compute:
             self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
                                     | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)

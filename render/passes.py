@@ -42,12 +42,19 @@ class EyeTargets:
         self.tiles = (-(-width // LIGHT_TILE), -(-height // LIGHT_TILE))
         self.tile_counts = ctx.texture(self.tiles, 1, dtype="u2")
         self.tile_lists = ctx.texture((self.tiles[0] * MAX_PER_TILE, self.tiles[1]), 1, dtype="u2")
-        for t in (self.tile_counts, self.tile_lists):
+        # Depth bounds halved four times (16 = 2^4): the last level has one texel per tile.
+        self.bounds = []
+        w, h = width, height
+        for _ in range(4):
+            w, h = -(-w // 2), -(-h // 2)
+            self.bounds.append(ctx.texture((w, h), 2, dtype="f4"))
+        self.bounds_fbos = [ctx.framebuffer([t]) for t in self.bounds]
+        for t in (self.tile_counts, self.tile_lists, *self.bounds):
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
     def release(self) -> None:
         for obj in (self.gbuffer, self.forward, self.albedo, self.normal, self.depth, self.color,
-                    self.tile_counts, self.tile_lists):
+                    self.tile_counts, self.tile_lists, *self.bounds_fbos, *self.bounds):
             obj.release()
 
 
@@ -239,18 +246,38 @@ class LightCullPass(RenderPass):
     name = "light_cull"
 
     def execute(self, frame: FrameContext) -> None:
-        prog = self.shaders.compute("light_cull.comp.glsl")
+        first = self.shaders.program("fullscreen.vert.glsl", "depth_bounds.frag.glsl",
+                                     {"FROM_DEPTH": True})
+        step = self.shaders.program("fullscreen.vert.glsl", "depth_bounds.frag.glsl")
+        cull = self.shaders.compute("light_cull.comp.glsl")
         frame.scene.light_buffer.bind_to_uniform_block(0)
-        prog["u_light_count"].value = len(frame.scene.lights)
+        cull["u_light_count"].value = len(frame.scene.lights)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         for eye, tgt in zip(frame.eyes, frame.targets):
-            tgt.depth.use(3)
-            prog["u_gb_depth"].value = 3
+            # Tile depth ranges: four 2x2 min/max reductions in the graphics pipeline (on
+            # llvmpipe far cheaper than shared-memory atomics in a compute shader).
+            src_size = tgt.size
+            for level, fbo in enumerate(tgt.bounds_fbos):
+                prog = first if level == 0 else step
+                if level == 0:
+                    tgt.depth.use(3)
+                    prog["u_depth"].value = 3
+                else:
+                    tgt.bounds[level - 1].use(3)
+                    prog["u_bounds"].value = 3
+                prog["u_src_size"].value = src_size
+                fbo.use()
+                self.fullscreen(prog)
+                src_size = tgt.bounds[level].size
+            tgt.bounds[-1].use(3)
+            cull["u_bounds"].value = 3
             tgt.tile_counts.bind_to_image(1, read=False, write=True)
             tgt.tile_lists.bind_to_image(2, read=False, write=True)
-            prog["u_view"].write(gl_bytes(eye.view))
-            prog["u_inv_projection"].write(gl_bytes(np.linalg.inv(eye.projection)))
-            prog["u_size"].value = tgt.size
-            prog.run(*tgt.tiles)
+            cull["u_view"].write(gl_bytes(eye.view))
+            cull["u_inv_projection"].write(gl_bytes(np.linalg.inv(eye.projection)))
+            cull["u_size"].value = tgt.size
+            cull["u_tiles"].value = tgt.tiles
+            cull.run(-(-tgt.tiles[0] // 8), -(-tgt.tiles[1] // 8))
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
                                 | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
 

@@ -272,3 +272,31 @@ def test_temporal_filter_on_a_still_view_blends_towards_the_finer_image(host, sc
     err_temporal = np.abs(out - full)[coarse].mean()
     err_plain = np.abs(plain - full)[coarse].mean()
     assert err_temporal < err_plain
+
+
+def test_the_level0_scissor_holds_every_full_rate_pixel():
+    """The fragment pipeline lights level 0 only inside fovea_rect: check it against the
+    reference map for gazes across the view (corners included), caps and fovea sizes."""
+    from app.camera import StereoCamera
+    from render.cps import fovea_rect
+
+    rng = np.random.default_rng(7)
+    settings = Settings().cps
+    cam = StereoCamera(Settings().stereo)
+    checked = 0
+    for trial in range(40):
+        settings.fovea_deg = float(rng.choice([0.0, 3.0, 10.0, 25.0, 60.0]))
+        settings.deg_per_level = float(rng.choice([1.0, 5.0, 20.0]))
+        settings.max_level = int(rng.integers(0, 6))
+        caps = tuple(float(c) for c in rng.integers(0, 6, 3))
+        gaze = (float(rng.choice([0.0, 1.0, rng.uniform()])), float(rng.uniform()))
+        eye = cam.eyes(160, 180)[trial % 2]
+        rect = fovea_rect(eye, gaze, caps, settings)
+        if rect is None:
+            continue
+        levels = detail_map(eye, 160, 180, gaze, dict(zip(SIDES, caps)), settings)
+        ys, xs = np.nonzero(levels == 0)  # GL rows, as the rectangle
+        x, y, w, h = rect
+        assert ((xs >= x) & (xs < x + w) & (ys >= y) & (ys < y + h)).all(), (trial, rect)
+        checked += xs.size > 0 and w * h < 160 * 180
+    assert checked >= 5  # rectangles smaller than the view, holding level-0 pixels
