@@ -125,7 +125,7 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
                           settings.tcr.enabled and session.levels and gazed is not None)
                           else 0), "resident_bytes": resident[-1]}
             if reference is not None and i % compare_every == 0:
-                test_img = host.draw(frame)
+                test_img = host.read_pixels()  # the timed frame itself
                 ref_img = reference.draw(frame)
                 whole = metrics.compare(ref_img, test_img, ppd)
                 record["error"] = whole

@@ -55,6 +55,11 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("which", choices=("tcr", "cps"), help="tcr: texture LOD; cps: coarse shading")
     ex.add_argument("--out", default=None, help="folder for the JSON files (out/bench-WHICH)")
     ex.add_argument("--only", default=None, help="only the runs whose name contains this")
+    st = sub.add_parser("study", help="speed/accuracy study: a settings matrix against full "
+                                      "quality; results.json/.csv, report.md, pareto.png")
+    st.add_argument("which", choices=("cps", "tcr"), help="cps: corridor; tcr: showroom")
+    st.add_argument("--out", default=None, help="folder (out/study-WHICH); resumes if present")
+    st.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
     rep = sub.add_parser("report", help="benchmark JSON files as one markdown table")
     rep.add_argument("files", nargs="+", help="JSON files written by vrpreview bench")
     rep.add_argument("--group", action="append", default=[], metavar="KEY",
@@ -117,6 +122,13 @@ def _run(args: argparse.Namespace, settings: Settings, path) -> int:
         from app.experiments import run_all
 
         print(run_all(args.which, args.out or f"out/bench-{args.which}", args.only))
+        return 0
+    if args.command == "study":
+        from app.study import print_progress, run_study
+
+        out = args.out or f"out/study-{args.which}"
+        rows = run_study(args.which, out, args.size, print_progress)
+        print(f"{len(rows)} runs; results.json, results.csv, report.md and pareto.png in {out}/")
         return 0
     if args.command == "report":
         from app.report import report

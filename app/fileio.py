@@ -33,6 +33,10 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     return target
 
 
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
 def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> Path:
     """Strict JSON: non-finite floats (an infinite PSNR of identical frames) become null."""
     text = json.dumps(_finite_only(obj), indent=2, allow_nan=False, default=_json_default)

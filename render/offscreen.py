@@ -54,6 +54,14 @@ class OffscreenHost:
             self.renderer.render(frame, self.fbo)
             self.ctx.finish()
 
+    def read_pixels(self) -> np.ndarray:
+        """The last rendered frame (draw or render_only) as (H, W, 3) uint8, row 0 at the top;
+        no new render, so stateful passes (the temporal filter) are not stepped again."""
+        with self.ctx:
+            data = self.fbo.read(components=3, alignment=1)
+        img = np.frombuffer(data, np.uint8).reshape(self.height, self.width, 3)
+        return np.ascontiguousarray(np.flipud(img))
+
     def object_ids(self, frame: FrameInput) -> list[np.ndarray]:
         with self.ctx:
             return self.renderer.object_ids(frame)

@@ -300,3 +300,23 @@ def test_the_level0_scissor_holds_every_full_rate_pixel():
         assert ((xs >= x) & (xs < x + w) & (ys >= y) & (ys < y + h)).all(), (trial, rect)
         checked += xs.size > 0 and w * h < 160 * 180
     assert checked >= 5  # rectangles smaller than the view, holding level-0 pixels
+
+
+def test_reprojection_keeps_a_walking_view_from_smearing(host, scene):
+    """Frames 0.1 s apart while walking (what a 10 fps preview shows): with reprojection the
+    blended history lines up with the new frame; without, it is the old view, offset."""
+    def walk(n):
+        return frame(host, scene, t_frame=n)
+
+    frames = [walk(n) for n in range(60, 130, 6)]
+    configure(host)
+    full = host.draw(frames[-1]).astype(float)
+    errors = {}
+    for reproject in (True, False):
+        configure(host, cps__mode="cps", cps__temporal=True, cps__reproject=reproject,
+                  cps__max_level=3, cps__history_weight=0.8)
+        for fi in frames:
+            host.render_only(fi)
+        out = host.read_pixels().astype(float)
+        errors[reproject] = np.abs(out - full).mean()
+    assert errors[True] < 0.9 * errors[False], errors

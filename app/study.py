@@ -1,0 +1,219 @@
+"""The speed/accuracy study (``vrpreview study``): a matrix of settings benchmarked on one path,
+each against the full-quality frame, written as results.json, results.csv, report.md and a
+frame-time-against-error plot with the Pareto front marked.
+
+Resumable: results.json is rewritten after every run, and a run already in it is not run again,
+so an interrupted study picks up where it stopped. Errors are computed on display values (what
+the user sees) by :func:`app.bench.bench`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import json
+import math
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from app.bench import bench, parse_size
+from app.fileio import atomic_write_json, atomic_write_png, atomic_write_text
+from app.report import markdown
+from app.scenes import resolve_path
+from app.settings import Settings
+
+FULL = "full-quality"
+
+
+@dataclass(frozen=True)
+class Matrix:
+    scene: str
+    path: str
+    runs: list[tuple[str, tuple[str, ...]]]  # name, --set assignments; the first is the reference
+    frames: int = 0
+    stride: int = 24
+    compare_every: int = 3
+
+
+def _cps_matrix() -> Matrix:
+    runs: list[tuple[str, tuple[str, ...]]] = [(FULL, ("cps.mode=none",))]
+    runs += [("black-mask", ("cps.mode=black-mask",)), ("blur-mask", ("cps.mode=blur-mask",))]
+    for level, filt, temporal in itertools.product((2, 3, 4, 5), ("none", "hierarchical"),
+                                                   (False, True)):
+        name = f"cps-block{1 << level}-{filt}" + ("-temporal" if temporal else "")
+        runs.append((name, ("cps.mode=cps", f"cps.max_level={level}", f"cps.filter={filt}",
+                            f"cps.temporal={str(temporal).lower()}")))
+    return Matrix("corridor", "corridor_walk", runs)
+
+
+def _tcr_matrix() -> Matrix:
+    runs: list[tuple[str, tuple[str, ...]]] = [(FULL, ("tcr.enabled=false",))]
+    for preset, mode in itertools.product(("ergonomics", "psychology"), ("clamp", "paper")):
+        runs.append((f"tcr-{preset}-{mode}", ("tcr.enabled=true", f"tcr.preset={preset}",
+                                              f"tcr.mode={mode}")))
+    return Matrix("showroom", "showroom_walkthrough", runs, stride=10, compare_every=3)
+
+
+MATRICES: dict[str, Callable[[], Matrix]] = {"cps": _cps_matrix, "tcr": _tcr_matrix}
+
+FIELDS = ("name", "settings", "frames", "fps", "frame_ms", "p95_ms", "speedup", "psnr_db",
+          "ssim", "flip", "fovea_psnr_db", "fovea_max_diff", "periphery_psnr_db",
+          "periphery_ssim", "periphery_flip", "resident_mb", "shaded_samples")
+
+
+def row_from(name: str, sets: tuple[str, ...], result: dict) -> dict:
+    err = result.get("error_vs_full_quality") or {}
+    frame = err.get("frame", {})
+    fovea, periphery = err.get("fovea", {}), err.get("periphery", {})
+    return {"name": name, "settings": " ".join(sets), "frames": result["frames"],
+            "fps": result["fps_median"], "frame_ms": result["frame_ms"]["median"],
+            "p95_ms": result["frame_ms"]["p95"], "speedup": None,
+            "psnr_db": frame.get("psnr_db"), "ssim": frame.get("ssim"),
+            "flip": frame.get("flip"), "fovea_psnr_db": fovea.get("psnr_db"),
+            "fovea_max_diff": err.get("fovea_max_abs_diff"),
+            "periphery_psnr_db": periphery.get("psnr_db"),
+            "periphery_ssim": periphery.get("ssim"), "periphery_flip": periphery.get("flip"),
+            "resident_mb": result["texture_resident_bytes"] / 1e6,
+            "shaded_samples": result["shaded_samples"]}
+
+
+def pareto(rows: list[dict], cost: str = "frame_ms", error: str = "flip") -> list[str]:
+    """Names of the rows no other row beats on both frame time and error (lower is better)."""
+    ok = [r for r in rows if _finite(r.get(cost)) and _finite(r.get(error))]
+    front = []
+    for r in ok:
+        dominated = any(o[cost] <= r[cost] and o[error] <= r[error]
+                        and (o[cost] < r[cost] or o[error] < r[error]) for o in ok)
+        if not dominated:
+            front.append(r["name"])
+    return sorted(front, key=lambda n: next(r[cost] for r in ok if r["name"] == n))
+
+
+def _finite(v: object) -> bool:
+    return isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def run_study(which: str, out_dir: str | Path, size: str = "1280x720",
+              progress: Callable[[int, int, str], None] | None = None,
+              matrix: Matrix | None = None) -> list[dict]:
+    """Run (or resume) a study; ``matrix`` overrides the built-in one named ``which``."""
+    matrix = matrix or MATRICES[which]()
+    out = Path(out_dir)
+    results_file = out / "results.json"
+    rows: list[dict] = []
+    if results_file.exists():
+        try:
+            rows = json.loads(results_file.read_text(encoding="utf-8")).get("rows", [])
+        except (OSError, ValueError):
+            rows = []  # unreadable: start again rather than trust half a file
+    done = {r["name"] for r in rows}
+    for index, (name, sets) in enumerate(matrix.runs, start=1):
+        if progress:
+            progress(index, len(matrix.runs), name)
+        if name in done:
+            continue
+        settings = Settings()
+        settings.apply(list(sets))
+        result = bench(matrix.scene, parse_size(size), matrix.frames, settings, 3,
+                       resolve_path(matrix.path), None, matrix.compare_every, matrix.stride)
+        rows.append(row_from(name, sets, result))
+        atomic_write_json(results_file, {"study": which, "scene": matrix.scene,
+                                         "path": matrix.path, "size": size, "rows": rows})
+    full = next((r for r in rows if r["name"] == FULL), None)
+    for r in rows:
+        r["speedup"] = full["frame_ms"] / r["frame_ms"] if full and r["frame_ms"] else None
+    front = pareto([r for r in rows if r["name"] != FULL])
+    atomic_write_json(results_file, {"study": which, "scene": matrix.scene, "path": matrix.path,
+                                     "size": size, "rows": rows, "pareto": front})
+    atomic_write_text(out / "results.csv", to_csv(rows))
+    atomic_write_text(out / "report.md", to_markdown(which, matrix, rows, front))
+    atomic_write_png(out / "pareto.png", plot(rows, front, f"{which}: {matrix.scene}"))
+    return rows
+
+
+def to_csv(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, FIELDS, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: r.get(k) for k in FIELDS})
+    return buf.getvalue()
+
+
+def _fmt(v: object, spec: str) -> str:
+    if not _finite(v):
+        return "identical" if v == math.inf else "-"
+    return format(v, spec)
+
+
+def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) -> str:
+    header = ("run", "fps", "frame ms", "speed-up", "PSNR dB", "SSIM", "FLIP",
+              "fovea max diff", "periphery PSNR dB", "periphery FLIP", "samples")
+    table = [[r["name"] + (" *" if r["name"] in front else ""), _fmt(r["fps"], ".2f"),
+              _fmt(r["frame_ms"], ".1f"), _fmt(r["speedup"], ".2f"), _fmt(r["psnr_db"], ".1f"),
+              _fmt(r["ssim"], ".4f"), _fmt(r["flip"], ".4f"),
+              "-" if r["fovea_max_diff"] is None else str(r["fovea_max_diff"]),
+              _fmt(r["periphery_psnr_db"], ".1f"), _fmt(r["periphery_flip"], ".4f"),
+              str(r["shaded_samples"])] for r in rows]
+    return (f"# Study `{which}`: {matrix.scene}, path {matrix.path}\n\n"
+            f"Every {matrix.stride}th frame of the path, every {matrix.compare_every}th of those "
+            "compared with the same frame at full quality (finest textures, full-rate "
+            "lighting); errors on display values. Fovea: pixels CPS keeps at full rate; "
+            "periphery: the rest. `*`: on the Pareto front of frame time against FLIP.\n\n"
+            + markdown(header, table) + "\n\nPareto front (fastest first): "
+            + ", ".join(front) + "\n")
+
+
+def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.ndarray:
+    """Frame time (x) against FLIP (y), every run a dot, the Pareto front joined in red."""
+    img = Image.new("RGB", size, (255, 255, 255))
+    d = ImageDraw.Draw(img)
+    pts = [r for r in rows if _finite(r.get("frame_ms")) and _finite(r.get("flip"))]
+    left, top, right, bottom = 80, 40, size[0] - 30, size[1] - 60
+    d.rectangle((left, top, right, bottom), outline=(0, 0, 0))
+    d.text((left, 10), title + ": frame time against error (FLIP)", fill=(0, 0, 0))
+    d.text(((left + right) // 2 - 40, bottom + 30), "frame time (ms)", fill=(0, 0, 0))
+    d.text((5, top - 20), "FLIP", fill=(0, 0, 0))
+    if not pts:
+        return np.asarray(img)
+    xs = [r["frame_ms"] for r in pts]
+    ys = [r["flip"] for r in pts]
+    x0, x1 = 0.0, max(xs) * 1.1
+    y0, y1 = 0.0, max(max(ys) * 1.1, 1e-3)
+
+    def to_px(x: float, y: float) -> tuple[float, float]:
+        return (left + (x - x0) / (x1 - x0) * (right - left),
+                bottom - (y - y0) / (y1 - y0) * (bottom - top))
+
+    for k in range(5):  # axis ticks
+        x = x0 + (x1 - x0) * k / 4
+        y = y0 + (y1 - y0) * k / 4
+        px, _ = to_px(x, y0)
+        _, py = to_px(x0, y)
+        d.text((px - 10, bottom + 8), f"{x:.0f}", fill=(60, 60, 60))
+        d.text((left - 55, py - 6), f"{y:.3f}", fill=(60, 60, 60))
+    line = [to_px(r["frame_ms"], r["flip"]) for name in front for r in pts if r["name"] == name]
+    if len(line) > 1:
+        d.line(line, fill=(220, 30, 30), width=2)
+    for r in pts:
+        px, py = to_px(r["frame_ms"], r["flip"])
+        on = r["name"] in front
+        colour = (220, 30, 30) if on else (40, 90, 200)
+        d.ellipse((px - 4, py - 4, px + 4, py + 4), fill=colour)
+        d.text((px + 6, py - 6), r["name"], fill=colour)
+    return np.asarray(img)
+
+
+def print_progress(done: int, total: int, name: str) -> None:
+    width = 30
+    filled = round(width * (done - 1) / max(1, total))
+    print(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name:<40}", end="",
+          file=sys.stderr, flush=True)
+    if done == total:
+        print(file=sys.stderr)
