@@ -128,7 +128,7 @@ def run_study(which: str, out_dir: str | Path, size: str = "1280x720",
     full = next((r for r in rows if r["name"] == FULL), None)
     for r in rows:
         r["speedup"] = full["frame_ms"] / r["frame_ms"] if full and r["frame_ms"] else None
-    front = pareto([r for r in rows if r["name"] != FULL])
+    front = pareto(rows)
     atomic_write_json(results_file, {"study": which, "scene": matrix.scene, "path": matrix.path,
                                      "size": size, "rows": rows, "pareto": front})
     atomic_write_text(out / "results.csv", to_csv(rows))
@@ -162,7 +162,7 @@ def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) 
               _fmt(r["periphery_psnr_db"], ".1f"), _fmt(r["periphery_flip"], ".4f"),
               str(r["shaded_samples"])] for r in rows]
     return (f"# Study `{which}`: {matrix.scene}, path {matrix.path}\n\n"
-            f"Every {matrix.stride}th frame of the path, every {matrix.compare_every}th of those "
+            f"One frame in {matrix.stride} of the path, one in {matrix.compare_every} of those "
             "compared with the same frame at full quality (finest textures, full-rate "
             "lighting); errors on display values. Fovea: pixels CPS keeps at full rate; "
             "periphery: the rest. `*`: on the Pareto front of frame time against FLIP.\n\n"
@@ -171,7 +171,8 @@ def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) 
 
 
 def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.ndarray:
-    """Frame time (x) against FLIP (y), every run a dot, the Pareto front joined in red."""
+    """Frame time (x) against FLIP (y), every run a dot, the Pareto front joined in red and
+    named (with full quality and the masks); the other runs' names are in report.md."""
     img = Image.new("RGB", size, (255, 255, 255))
     d = ImageDraw.Draw(img)
     pts = [r for r in rows if _finite(r.get("frame_ms")) and _finite(r.get("flip"))]
@@ -206,7 +207,8 @@ def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.
         on = r["name"] in front
         colour = (220, 30, 30) if on else (40, 90, 200)
         d.ellipse((px - 4, py - 4, px + 4, py + 4), fill=colour)
-        d.text((px + 6, py - 6), r["name"], fill=colour)
+        if on or r["name"] in (FULL, "black-mask", "blur-mask"):  # the rest: see report.md
+            d.text((px + 6, py - 6), r["name"], fill=colour)
     return np.asarray(img)
 
 

@@ -27,7 +27,7 @@ def test_study_writes_results_table_plot_and_resumes(tmp_path, monkeypatch):
     assert [r["name"] for r in rows] == [FULL, "cps-block16", "black-mask"]
     assert seen == [FULL, "cps-block16", "black-mask"]
     data = json.loads((tmp_path / "results.json").read_text())
-    assert data["pareto"] and set(data["pareto"]) <= {"cps-block16", "black-mask"}
+    assert FULL in data["pareto"]  # no error at all: always on the front
     cps = next(r for r in rows if r["name"] == "cps-block16")
     assert cps["fovea_max_diff"] == 0 and cps["periphery_flip"] > 0
     assert cps["shaded_samples"] < rows[0]["shaded_samples"]
