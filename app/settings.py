@@ -46,8 +46,8 @@ class RenderSettings:
                              lo=0.0, hi=16.0)
     ambient: float = _opt(0.06, "constant ambient light", lo=0.0, hi=4.0)
     overlay: bool = _opt(True, "draw the fps overlay in the view")
-    light_culling: bool = _opt(True, "deferred: per 16x16 tile, evaluate only the lights whose "
-                               "range reaches it")
+    light_culling: bool = _opt(True, "deferred, scenes with more than 8 lights: per 16x16 "
+                               "tile, evaluate only the lights whose range reaches it")
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(1.0, "anisotropic texture filtering (1 = off)", lo=1.0, hi=16.0)
 

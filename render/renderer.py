@@ -42,6 +42,7 @@ from render.passes import (
 from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
+CULL_MIN_LIGHTS = 8  # light culling runs for scenes with more lights than this
 
 
 class Renderer:
@@ -118,7 +119,8 @@ class Renderer:
         self.lighting.stage = r.lighting
         cps = self._configure_cps(frame, deferred)
         scene_lights = len((self.gpu_scene or self._empty).lights)
-        self.light_cull.enabled = deferred and r.light_culling and scene_lights > 0
+        # With a handful of lights the culling pass costs more than it saves.
+        self.light_cull.enabled = deferred and r.light_culling and scene_lights > CULL_MIN_LIGHTS
         self.overlay.enabled = True
         self.overlay.show_text = r.overlay
         ctx = FrameContext(
