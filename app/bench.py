@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from app import metrics, scenes
+from app.cps import detail_map
 from app.fileio import atomic_write_json, atomic_write_png
 from app.overlay_text import text_image
 from app.paths import FIXED_DT, CameraPath
@@ -212,8 +213,6 @@ def full_quality(settings: Settings) -> Settings:
 
 def _fovea_mask(session: Session, frame, eye: int) -> np.ndarray:
     """Pixels of one eye the detail map keeps at level 0 (GL row order, row 0 at the bottom)."""
-    from app.cps import detail_map
-
     view = frame.eyes[eye]
     caps = frame.cps_caps[eye] if frame.cps_caps else (0, 0, 0)
     levels = detail_map(view, view.width, view.height, frame.gaze,

@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from app.camera import StereoCamera
+from app.cps import side_caps
 from app.frame import FrameInput
 from app.gaze import GazeModel
 from app.navigation import Walker
@@ -117,8 +118,6 @@ class Session:
         c = self.settings.cps
         if c.mode == "none" and not c.visualize:
             return []
-        from app.cps import side_caps
-
         w = self.walker
         self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
         return [side_caps(self.caster, eye, c) for eye in self.camera.eyes(*self.eye_size)]

@@ -21,6 +21,7 @@ import moderngl
 import numpy as np
 
 from app.camera import EyeView, gl_bytes
+from app.cps import MAX_LEVEL
 from app.settings import CpsSettings
 from render.passes import (
     BACKGROUND,
@@ -28,11 +29,9 @@ from render.passes import (
     FrameContext,
     RenderPass,
     _scene_uniforms,
-    use_tiles,
+    deferred_inputs,
 )
 from render.shaders import ShaderLibrary
-
-MAX_LEVEL = 5
 
 
 @dataclass
@@ -245,16 +244,9 @@ class CpsLightingPass(CpsPass):
         for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets,
                                                      self.state.eyes)):
             w, h = tgt.size
-            tgt.albedo.use(1)
-            tgt.normal.use(2)
-            tgt.depth.use(3)
+            deferred_inputs(prog, frame, eye, tgt)
             cps.levels.use(4)
-            prog["u_gb_albedo"].value, prog["u_gb_normal"].value = 1, 2
-            prog["u_gb_depth"].value, prog["u_levels"].value = 3, 4
-            use_tiles(prog, frame, tgt)
-            prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
-            prog["u_eye"].value = tuple(eye.position)
-            prog["u_size"].value = (w, h)
+            prog["u_levels"].value = 4
             if compute:
                 cps.blocks.bind_to_image(0, read=False, write=True)
                 if self.dispatch == "multi":

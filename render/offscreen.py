@@ -43,9 +43,7 @@ class OffscreenHost:
             self.fbo.use()
             self.fbo.clear(0.0, 0.0, 0.0, 1.0)
             self.renderer.render(frame, self.fbo)
-            data = self.fbo.read(components=3, alignment=1)
-        img = np.frombuffer(data, np.uint8).reshape(self.height, self.width, 3)
-        return np.ascontiguousarray(np.flipud(img))
+        return self.read_pixels()
 
     def render_only(self, frame: FrameInput) -> None:
         """Render and wait for the GPU, without reading pixels back (for timing)."""

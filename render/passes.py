@@ -208,15 +208,7 @@ class LightingPass(RenderPass):
         self.samples = 0
         for eye, tgt in zip(frame.eyes, frame.targets):
             w, h = tgt.size
-            tgt.albedo.use(1)
-            tgt.normal.use(2)
-            tgt.depth.use(3)
-            prog["u_gb_albedo"].value, prog["u_gb_normal"].value = 1, 2
-            prog["u_gb_depth"].value = 3
-            use_tiles(prog, frame, tgt)
-            prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
-            prog["u_eye"].value = tuple(eye.position)
-            prog["u_size"].value = (w, h)
+            deferred_inputs(prog, frame, eye, tgt)
             if self.stage == "compute":
                 tgt.color.bind_to_image(0, read=False, write=True)
                 prog.run(math.ceil(w / 8), math.ceil(h / 8))
@@ -227,6 +219,20 @@ class LightingPass(RenderPass):
         if self.stage == "compute":
             self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
                                     | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+
+def deferred_inputs(prog: moderngl.Program, frame: FrameContext, eye: EyeView,
+                    tgt: EyeTargets) -> None:
+    """What deferred.glsl's light_texel reads for one eye: the G-buffer (units 1-3), the tile
+    light lists, the eye and the viewport size."""
+    tgt.albedo.use(1)
+    tgt.normal.use(2)
+    tgt.depth.use(3)
+    prog["u_gb_albedo"].value, prog["u_gb_normal"].value, prog["u_gb_depth"].value = 1, 2, 3
+    use_tiles(prog, frame, tgt)
+    prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
+    prog["u_eye"].value = tuple(eye.position)
+    prog["u_size"].value = tgt.size
 
 
 def use_tiles(prog: moderngl.Program, frame: FrameContext, tgt: EyeTargets) -> None:

@@ -25,6 +25,7 @@ from assets.corridor import (
     irradiance_profile,
     make_corridor_lights,
 )
+from tests.test_showroom import _clear_around as clear_around
 
 CLEARANCE_M = 0.4
 #: Body heights the walk must keep clear: ankles, knees, seat and cabinet tops, hips, shoulders,
@@ -55,20 +56,6 @@ def _positions(walk: CameraPath, step_s: float = 0.02) -> np.ndarray:
     """Eye positions along the walk, sampled finely (the path is linear between keys)."""
     times = np.arange(0.0, walk.duration + 1e-9, step_s)
     return np.array([walk.sample(float(t)).position for t in times])
-
-
-def _clear_around(caster: RayCaster, xz: np.ndarray, heights: tuple[float, ...],
-                  radius: float = CLEARANCE_M, directions: int = 32) -> bool:
-    """True when nothing lies within ``radius`` horizontally of any point, at every height."""
-    ang = np.linspace(0.0, 2 * np.pi, directions, endpoint=False)
-    dirs = np.stack([np.cos(ang), np.zeros_like(ang), np.sin(ang)], axis=1)
-    origins, rays = [], []
-    for h in heights:
-        pts = np.stack([xz[:, 0], np.full(len(xz), h), xz[:, 1]], axis=1)
-        origins.append(np.repeat(pts, directions, axis=0))
-        rays.append(np.tile(dirs, (len(xz), 1)))
-    dist, _ = caster.cast_many(np.concatenate(origins), np.concatenate(rays), t_max=radius)
-    return bool(np.all(np.isinf(dist)))
 
 
 # -- the scene ----------------------------------------------------------------------------------
@@ -237,7 +224,7 @@ def test_walk_stays_clear_of_walls_and_furniture(corridor: Scene, caster: RayCas
                                                  walk: CameraPath) -> None:
     pos = _positions(walk, 0.02)  # 5 cm apart at 2.5 m/s
     assert np.all(np.abs(pos[:, 0]) < HW - CLEARANCE_M)
-    assert _clear_around(caster, pos[:, [0, 2]], BODY_HEIGHTS)
+    assert clear_around(caster, pos[:, [0, 2]], BODY_HEIGHTS, CLEARANCE_M, 32)
     # nothing stands in the way between samples either
     for h in BODY_HEIGHTS:
         a = pos[:-1].copy()
@@ -252,8 +239,9 @@ def test_clearance_check_would_catch_a_collision(corridor: Scene, caster: RayCas
     cabinet = next(m for m in corridor.meshes if m.name == "cabinet_L1")
     lo, hi = cabinet.bounds()
     front_x = float(hi[0]) + 0.3  # 30 cm in front of a cabinet on the left wall
-    assert not _clear_around(caster, np.array([[front_x, float(lo[2] + hi[2]) / 2]]), (0.45,))
-    assert not _clear_around(caster, np.array([[HW - 0.3, -20.0]]), (1.6,))
+    assert not clear_around(caster, np.array([[front_x, float(lo[2] + hi[2]) / 2]]), (0.45,),
+                            CLEARANCE_M, 32)
+    assert not clear_around(caster, np.array([[HW - 0.3, -20.0]]), (1.6,), CLEARANCE_M, 32)
 
 
 # -- a frame ------------------------------------------------------------------------------------

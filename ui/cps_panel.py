@@ -29,12 +29,7 @@ from PyQt6.QtWidgets import (
 )
 
 from app.settings import Settings, SettingsError
-
-try:
-    from render.passes import CPS_LEVEL_COLOURS
-except ImportError:  # the renderer's CPS pass not there yet: the paper's Fig. 2 colours
-    CPS_LEVEL_COLOURS = ((1.0, 1.0, 1.0), (0.15, 0.35, 1.0), (0.0, 0.9, 0.9), (0.1, 0.85, 0.1),
-                         (1.0, 0.95, 0.0), (1.0, 0.1, 0.1))
+from render.passes import CPS_LEVEL_COLOURS
 
 log = logging.getLogger(__name__)
 
@@ -56,9 +51,8 @@ MITIGATIONS = (
     (("cps", "fragment"), "Coarse pixel shading, graphics pipeline"),
     (("cps", "compute"), "Coarse pixel shading, compute (the paper's)"),
 )
-#: Where the lighting runs: the CPS section's own key if the model has one, else the deferred
-#: lighting stage, which CPS follows.
-PIPELINE_KEYS = ("cps.pipeline", "render.lighting")
+#: Where the lighting runs: CPS follows the deferred lighting stage.
+PIPELINE_KEY = "render.lighting"
 SIDES = ("left", "right", "bottom")
 EYES = ("left eye", "right eye")
 NONE = "-"  # shown for a statistic the renderer did not report
@@ -130,8 +124,7 @@ The pipeline control edits ``cps.pipeline`` where the model has it, else ``rende
 
         box = QGroupBox("Mitigation")
         form = QFormLayout(box)
-        keys = settings.keys()
-        self.pipeline_key = next(k for k in PIPELINE_KEYS if k in keys)
+        self.pipeline_key = PIPELINE_KEY
         # The paper's five modes on one control (plus CPS in either pipeline): each entry sets
         # cps.mode and, where it matters, the lighting stage (render.lighting).
         self.mode = QComboBox()
