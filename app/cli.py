@@ -52,12 +52,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--stride", type=int, default=1, metavar="K",
                    help="time every K-th frame of the path only (a long walk in fewer frames)")
     ex = sub.add_parser("experiments", help="run a paper's benchmark set and print its tables")
-    ex.add_argument("which", choices=("tcr", "cps"), help="tcr: texture LOD; cps: coarse shading")
+    ex.add_argument("which", choices=("tcr", "cps", "photons"),
+                    help="tcr: texture LOD; cps: coarse shading; photons: photon mapping")
     ex.add_argument("--out", default=None, help="folder for the JSON files (out/bench-WHICH)")
     ex.add_argument("--only", default=None, help="only the runs whose name contains this")
     st = sub.add_parser("study", help="speed/accuracy study: a settings matrix against full "
                                       "quality; results.json/.csv, report.md, pareto.png")
-    st.add_argument("which", choices=("cps", "tcr"), help="cps: corridor; tcr: showroom")
+    st.add_argument("which", choices=("cps", "tcr", "photons"),
+                    help="cps: corridor; tcr and photons: showroom")
     st.add_argument("--out", default=None, help="folder (out/study-WHICH); resumes if present")
     st.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
     rep = sub.add_parser("report", help="benchmark JSON files as one markdown table")

@@ -31,10 +31,11 @@ class Run:
     compare_every: int = 0
     size: str = "1280x720"
     groups: tuple[str, ...] = field(default=())
+    warmup: int = 5
 
     def command(self) -> str:
         parts = ["vrpreview", "bench", "--scene", self.scene, "--path", self.path,
-                 "--size", self.size, "--frames", str(self.frames)]
+                 "--size", self.size, "--frames", str(self.frames), "--warmup", str(self.warmup)]
         if self.stride > 1:
             parts += ["--stride", str(self.stride)]
         if self.compare_every:
@@ -102,7 +103,16 @@ def cps_runs() -> list[Run]:
     return runs
 
 
-EXPERIMENTS = {"tcr": tcr_runs, "cps": cps_runs}
+def photon_runs() -> list[Run]:
+    """The photon-mapping paper's Tables 1, 2, 4 and 5 on the showroom walkthrough: 4 frames
+    spread over the walk (every 150th), both eyes at 640x720 (see app.photon_bench)."""
+    from app.photon_bench import table_runs
+
+    return [Run(name, "showroom", "showroom_walkthrough", sets, frames=4, stride=150, warmup=1)
+            for name, sets in table_runs()]
+
+
+EXPERIMENTS = {"tcr": tcr_runs, "cps": cps_runs, "photons": photon_runs}
 
 
 def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
@@ -115,7 +125,7 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
         print(f"[{index}/{len(runs)}] {run.name}: {run.command()}", file=sys.stderr, flush=True)
         settings = Settings()
         settings.apply(list(run.sets))
-        result = bench(run.scene, parse_size(run.size), run.frames, settings, 5,
+        result = bench(run.scene, parse_size(run.size), run.frames, settings, run.warmup,
                        resolve_path(run.path), None, run.compare_every, run.stride)
         result["command"] = run.command()
         target = out / f"{run.name}.json"
@@ -123,5 +133,16 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
         files.append(target)
         print(f"    {result['fps_median']:.2f} fps, {result['frame_ms']['median']:.1f} ms",
               file=sys.stderr, flush=True)
+    if which == "photons":
+        import json
+
+        from app.photon_bench import tables, write_peer
+
+        results = {f.stem: json.loads(f.read_text(encoding="utf-8")) for f in files}
+        text = tables(results)
+        if not only or "peer" in only:
+            print("peer comparison with scipy cKDTree", file=sys.stderr, flush=True)
+            text += "\n\n" + write_peer(out)
+        return text
     groups = sorted({g for r in runs for g in r.groups})
     return report(files, tuple(groups))

@@ -302,7 +302,8 @@ class _SceneBuilder:
         material = self._material_index(visual, colors is not None)
 
         rot = matrix[:3, :3]
-        pos = pos @ rot.T + matrix[:3, 3]
+        with np.errstate(invalid="ignore", over="ignore"):  # NaN vertices: dropped later
+            pos = pos @ rot.T + matrix[:3, 3]
         det = float(np.linalg.det(rot))
         if det < 0.0:
             idx = idx[:, [0, 2, 1]]  # a mirroring transform turns the winding inside out

@@ -19,6 +19,8 @@ class RayCaster:
         tri = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
         finite = np.isfinite(tri).all(axis=(1, 2))
         self.tri = tri[finite]
+        # Index of each kept triangle in the input: callers map cast_triangles() answers back.
+        self.source_index = np.flatnonzero(finite)
         self.owner = (np.asarray(owners)[finite] if owners is not None
                       else np.arange(self.tri.shape[0]))
         self._embree = None
@@ -67,6 +69,48 @@ class RayCaster:
         far = dist > t_max
         dist[far], who[far] = np.inf, -1
         return dist, who
+
+    def cast_triangles(self, origins, directions, t_max: float = math.inf
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """Distances (inf on a miss) and hit triangle indices into ``self.tri`` (-1 on a miss).
+
+        One batched call for many rays (photon tracing); ``self.source_index`` maps a triangle
+        index back to the input array, whose non-finite triangles were dropped.
+        """
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        d = np.asarray(directions, np.float64).reshape(-1, 3)
+        n = o.shape[0]
+        dist = np.full(n, np.inf)
+        tri = np.full(n, -1, np.int64)
+        norm = np.linalg.norm(d, axis=1)
+        valid = np.isfinite(o).all(axis=1) & np.isfinite(d).all(axis=1) & (norm > 1e-12)
+        valid &= np.abs(o).max(axis=1, initial=0.0) < 1e15
+        if not valid.any() or self.tri.shape[0] == 0:
+            return dist, tri
+        idx = np.flatnonzero(valid)
+        ov, dv = o[idx], d[idx] / norm[idx, None]
+        if self._embree is not None:
+            # The raw embree query: one call, no per-hit location refinement (trimesh's
+            # intersects_location re-casts rays to compute locations, several times slower).
+            wrap = self._embree._scene
+            res = wrap.run(ov, dv, output=1)
+            prim = np.asarray(res["primID"], np.int64)
+            t = np.asarray(res["tfar"], np.float64) / wrap.scale  # embree works scaled
+            hit = (prim >= 0) & (prim < self.tri.shape[0]) & np.isfinite(t) & (t >= 0.0)
+            dist[idx[hit]] = t[hit]
+            tri[idx[hit]] = prim[hit]
+        else:
+            v0 = self.tri[:, 0]
+            e1 = self.tri[:, 1] - v0
+            e2 = self.tri[:, 2] - v0
+            for k, i in enumerate(idx):
+                t = _intersect(ov[k], dv[k], v0, e1, e2)
+                j = int(np.argmin(t))
+                if math.isfinite(t[j]):
+                    dist[i], tri[i] = t[j], j
+        far = dist > t_max
+        dist[far], tri[far] = np.inf, -1
+        return dist, tri
 
     def cast(self, origin, direction, t_max: float = math.inf) -> tuple[float, int]:
         """Nearest hit distance along the ray and the owner id, or (inf, -1)."""

@@ -85,6 +85,7 @@ class Scene:
     spawn: Viewpoint = field(default_factory=lambda: Viewpoint((0.0, 1.6, 0.0)))
     floor_y: float | None = None  # floor height under the spawn, if known
     source: str = ""  # file path, or "built-in"
+    indirect: bool = False  # the scene asks for photon-mapped indirect light (photons.enabled)
     warnings: list[str] = field(default_factory=list)
 
     @property

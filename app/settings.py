@@ -126,6 +126,32 @@ class CpsSettings:
 
 
 @dataclass
+class PhotonSettings:
+    """Photon-mapped indirect light (SPEC D): traced on the CPU, gathered on the GPU."""
+
+    enabled: str = _opt("scene", "indirect light from a photon map: scene (only where the scene "
+                        "asks for it), on or off", choices=("scene", "on", "off"))
+    photons: int = _opt(65536, "photon paths emitted from the lights (the paper: 128^2 = 16384, "
+                        "256^2 = 65536, 512^2 = 262144)", lo=0, hi=1 << 22)
+    radius_m: float = _opt(0.3, "gather radius r (m)", lo=1e-3, hi=100.0)
+    gather: str = _opt("radius", "radius (hash grid, cell r, no heap: the paper's default), "
+                       "radius-half (cell r/2, 5x5x5), heap (k nearest), kdtree, kdtree-heap, "
+                       "shared (cooperative shared-memory gather, paper Algorithm 1)",
+                       choices=("radius", "radius-half", "heap", "kdtree", "kdtree-heap",
+                                "shared"))
+    k: int = _opt(32, "heap variants: nearest photons kept", lo=1, hi=64)
+    stereo_reuse: bool = _opt(True, "gather the left eye first and reuse its results at the "
+                              "right-eye pixels that see the same points")
+    reuse_tolerance: float = _opt(0.01, "stereo reuse: largest distance between the left hit "
+                                  "and the right pixel's point, relative to its depth",
+                                  lo=0.0, hi=1.0)
+    max_bounces: int = _opt(8, "longest photon path (bounces)", lo=1, hi=64)
+    seed: int = _opt(0, "random seed of the photon tracer", lo=0, hi=2**31 - 1)
+    show_reuse: bool = _opt(False, "paint right-eye pixels reused from the left eye green and "
+                            "gathered ones red")
+
+
+@dataclass
 class Settings:
     stereo: StereoSettings = field(default_factory=StereoSettings)
     render: RenderSettings = field(default_factory=RenderSettings)
@@ -133,6 +159,7 @@ class Settings:
     gaze: GazeSettings = field(default_factory=GazeSettings)
     tcr: TcrSettings = field(default_factory=TcrSettings)
     cps: CpsSettings = field(default_factory=CpsSettings)
+    photons: PhotonSettings = field(default_factory=PhotonSettings)
 
     # -- dotted-key access -------------------------------------------------------------------
     def _locate(self, key: str) -> tuple[Any, dataclasses.Field[Any]]:

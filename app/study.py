@@ -60,7 +60,26 @@ def _tcr_matrix() -> Matrix:
     return Matrix("showroom", "showroom_walkthrough", runs, stride=10, compare_every=3)
 
 
-MATRICES: dict[str, Callable[[], Matrix]] = {"cps": _cps_matrix, "tcr": _tcr_matrix}
+def _photon_matrix() -> Matrix:
+    """Photons emitted x gather radius (and the gather at block rate under CPS), each against
+    the converged photon map (app.bench.full_quality): the speed/accuracy curve of the
+    indirect light."""
+    from app.photon_bench import COUNTS, radius_m
+
+    base = ("photons.enabled=on", "photons.stereo_reuse=true")
+    runs: list[tuple[str, tuple[str, ...]]] = [(FULL, (*base, "photons.photons=4194304",
+                                                       "photons.radius_m=0.1",
+                                                       "photons.stereo_reuse=false"))]
+    for (label, count), rho in itertools.product(COUNTS.items(), (0.05, 0.1, 0.2)):
+        runs.append((f"photons-{label.replace('^', 'p')}-r{radius_m(rho):g}",
+                     (*base, f"photons.photons={count}", f"photons.radius_m={radius_m(rho)}")))
+    runs.append(("photons-256p2-r0.2-cps", (*base, "photons.photons=65536",
+                                             "photons.radius_m=0.2", "cps.mode=cps")))
+    return Matrix("showroom", "showroom_walkthrough", runs, stride=150, compare_every=1)
+
+
+MATRICES: dict[str, Callable[[], Matrix]] = {"cps": _cps_matrix, "tcr": _tcr_matrix,
+                                             "photons": _photon_matrix}
 
 FIELDS = ("name", "settings", "frames", "fps", "frame_ms", "p95_ms", "speedup", "psnr_db",
           "ssim", "flip", "fovea_psnr_db", "fovea_max_diff", "periphery_psnr_db",

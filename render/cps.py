@@ -30,6 +30,7 @@ from render.passes import (
     RenderPass,
     _scene_uniforms,
     deferred_inputs,
+    lighting_defines,
 )
 from render.shaders import ShaderLibrary
 
@@ -231,12 +232,12 @@ class CpsLightingPass(CpsPass):
         assert cf is not None
         frame.scene.light_buffer.bind_to_uniform_block(0)
         compute = self.stage == "compute"
-        tiled = {"TILED_LIGHTS": frame.culled}
+        defines = lighting_defines(frame)
         if compute:
             prog = self.shaders.compute("cps_lighting.comp.glsl",
-                                        {"MULTI_LEVEL": self.dispatch == "multi", **tiled})
+                                        {"MULTI_LEVEL": self.dispatch == "multi", **defines})
         else:
-            prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl", tiled)
+            prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl", defines)
         _scene_uniforms(prog, frame)
         prog["u_background"].value = BACKGROUND
         max_level = int(min(max(cf.settings.max_level, 0), MAX_LEVEL))

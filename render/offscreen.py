@@ -5,9 +5,12 @@ Benchmarks, ``vrpreview render``, the no-display demo and the tests all use this
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from app.frame import FrameInput
+from app.indirect import PhotonCache
 from app.scene import Scene
 from app.settings import Settings
 from render.context import create_headless
@@ -15,11 +18,18 @@ from render.renderer import Renderer
 
 
 class OffscreenHost:
-    def __init__(self, width: int, height: int, settings: Settings | None = None) -> None:
-        """``width`` x ``height`` is the whole side-by-side view (each eye is width/2)."""
+    def __init__(self, width: int, height: int, settings: Settings | None = None,
+                 trace_progress: Callable[[float], None] | None = None) -> None:
+        """``width`` x ``height`` is the whole side-by-side view (each eye is width/2).
+
+        A scene that wants indirect light gets its photon map traced here, blocking, before
+        its first frame (``trace_progress`` hears the fraction done)."""
         self.width = max(2, int(width) // 2 * 2)
         self.height = max(1, int(height))
         self.settings = settings or Settings()
+        self.photon_cache = PhotonCache()
+        self.trace_progress = trace_progress
+        self.scene: Scene | None = None
         self.ctx = create_headless()
         with self.ctx:
             self.renderer = Renderer(self.ctx, self.settings)
@@ -31,14 +41,24 @@ class OffscreenHost:
         return self.width // 2, self.height
 
     def set_scene(self, scene: Scene | None) -> None:
+        self.scene = scene
         with self.ctx:
             self.renderer.set_scene(scene)
+        self.sync_photons()
+
+    def sync_photons(self) -> None:
+        """Trace the photon map if the scene or the photon settings now ask for a new one
+        (a no-op when nothing changed); called before every frame."""
+        photons = self.photon_cache.ensure(self.settings.photons, self.scene, self.trace_progress)
+        with self.ctx:
+            self.renderer.set_photons(photons)
 
     def set_text_image(self, rgba: np.ndarray | None) -> None:
         self.renderer.overlay.set_text_image(rgba)
 
     def draw(self, frame: FrameInput) -> np.ndarray:
         """Render one stereo frame; (H, W, 3) uint8 with row 0 at the top."""
+        self.sync_photons()
         with self.ctx:
             self.fbo.use()
             self.fbo.clear(0.0, 0.0, 0.0, 1.0)
@@ -47,6 +67,7 @@ class OffscreenHost:
 
     def render_only(self, frame: FrameInput) -> None:
         """Render and wait for the GPU, without reading pixels back (for timing)."""
+        self.sync_photons()
         with self.ctx:
             self.fbo.use()
             self.renderer.render(frame, self.fbo)

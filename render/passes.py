@@ -91,6 +91,8 @@ class FrameContext:
     culled: bool = False  # tiled light lists are ready (LightCullPass ran this frame)
     level_maps: list[moderngl.Texture] | None = None  # CPS detail visualisation, per eye
     markers: list[list[tuple[int, int]]] | None = None  # per eye, pixels from the bottom-left
+    indirect: list[moderngl.Texture] | None = None  # photon irradiance per eye (PhotonPass)
+    show_reuse: bool = False  # paint the right eye's reused / gathered indirect pixels
 
 
 class RenderPass:
@@ -198,11 +200,11 @@ class LightingPass(RenderPass):
 
     def execute(self, frame: FrameContext) -> None:
         frame.scene.light_buffer.bind_to_uniform_block(0)
-        tiled = {"TILED_LIGHTS": frame.culled}
+        defines = lighting_defines(frame)
         if self.stage == "compute":
-            prog = self.shaders.compute("lighting.comp.glsl", tiled)
+            prog = self.shaders.compute("lighting.comp.glsl", defines)
         else:
-            prog = self.shaders.program("fullscreen.vert.glsl", "lighting.frag.glsl", tiled)
+            prog = self.shaders.program("fullscreen.vert.glsl", "lighting.frag.glsl", defines)
         _scene_uniforms(prog, frame)
         prog["u_background"].value = BACKGROUND
         self.samples = 0
@@ -221,10 +223,18 @@ class LightingPass(RenderPass):
                                     | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
 
 
+def lighting_defines(frame: FrameContext) -> dict[str, object]:
+    """The deferred.glsl variant this frame needs (tile lists, photon-map indirect light)."""
+    return {"TILED_LIGHTS": frame.culled, "INDIRECT": frame.indirect is not None}
+
+
 def deferred_inputs(prog: moderngl.Program, frame: FrameContext, eye: EyeView,
                     tgt: EyeTargets) -> None:
     """What deferred.glsl's light_texel reads for one eye: the G-buffer (units 1-3), the tile
-    light lists, the eye and the viewport size."""
+    light lists, the indirect light (unit 8), the eye and the viewport size."""
+    if frame.indirect is not None and "u_indirect" in prog:
+        frame.indirect[frame.targets.index(tgt)].use(8)
+        prog["u_indirect"].value = 8
     tgt.albedo.use(1)
     tgt.normal.use(2)
     tgt.depth.use(3)
@@ -369,10 +379,13 @@ class PresentPass(RenderPass):
 
     def execute(self, frame: FrameContext) -> None:
         visualize = frame.level_maps is not None
+        show_reuse = frame.show_reuse and frame.indirect is not None
         prog = self.shaders.program("fullscreen.vert.glsl", "present.frag.glsl",
-                                    {"VISUALIZE": visualize})
+                                    {"VISUALIZE": visualize, "SHOW_REUSE": show_reuse})
         if visualize:
             prog["u_levels"].value = 1
+        if show_reuse:
+            prog["u_indirect"].value = 2
         w, h = frame.targets[0].size
         frame.out.use()
         x, y = frame.out_origin
@@ -386,6 +399,9 @@ class PresentPass(RenderPass):
             tgt.color.use(0)
             if visualize:
                 frame.level_maps[index].use(1)
+            if show_reuse:
+                frame.indirect[index].use(2)
+                prog["u_paint_reuse"].value = index
             self.fullscreen(prog)
         frame.out.viewport = (x, y, 2 * w, h)
 

@@ -13,6 +13,7 @@ import moderngl
 import numpy as np
 
 from app.frame import FrameInput
+from app.photon_map import PhotonMap
 from app.scene import Scene
 from app.settings import Settings
 from app.tcr import finest_per_texture
@@ -39,6 +40,7 @@ from render.passes import (
     PresentPass,
     RenderPass,
 )
+from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
@@ -64,10 +66,11 @@ class Renderer:
         self.cps_temporal = CpsTemporalPass(ctx, self.shaders, self.cps)
         self.cps_mask = CpsMaskPass(ctx, self.shaders, self.cps)
         self.light_cull = LightCullPass(ctx, self.shaders)
+        self.photons = PhotonPass(ctx, self.shaders)
         self.passes: list[RenderPass] = [
-            self.gbuffer, self.light_cull, self.cps_levels, self.lighting, self.cps_lighting,
-            self.cps_filter, self.cps_temporal, self.cps_mask, self.emissive, self.forward,
-            self.present, self.overlay]
+            self.gbuffer, self.light_cull, self.cps_levels, self.photons, self.lighting,
+            self.cps_lighting, self.cps_filter, self.cps_temporal, self.cps_mask, self.emissive,
+            self.forward, self.present, self.overlay]
         self.gpu_scene: GpuScene | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
@@ -82,6 +85,10 @@ class Renderer:
         if scene is not None:
             self.gpu_scene = GpuScene(self.ctx, scene, self.settings.render.anisotropy)
             self._warm_up()
+
+    def set_photons(self, photons: PhotonMap | None) -> None:
+        """The photon map for the current scene (traced by the host), or None: no indirect."""
+        self.photons.set_photons(photons)
 
     def _warm_up(self) -> None:
         """Compile every shader variant now, so the first frames do not stall."""
@@ -121,6 +128,10 @@ class Renderer:
         scene_lights = len((self.gpu_scene or self._empty).lights)
         # With a handful of lights the culling pass costs more than it saves.
         self.light_cull.enabled = deferred and r.light_culling and scene_lights > CULL_MIN_LIGHTS
+        self.photons.settings = self.settings.photons
+        self.photons.enabled = deferred and self.photons.photons is not None
+        self.photons.block_rate = self.cps_lighting.enabled
+        self.photons.level_maps = [e.levels for e in self.cps.eyes]
         self.overlay.enabled = True
         self.overlay.show_text = r.overlay
         ctx = FrameContext(
@@ -182,6 +193,26 @@ class Renderer:
         return {"level_share": (counts / max(1, levels.size)).tolist(),
                 "shaded_samples": int(round(blocks)) if self.cps_lighting.enabled
                 else int(levels.size), "full_samples": int(levels.size)}
+
+    def photon_stats(self) -> dict:
+        """Photons on the GPU, the grid, gather time and the right eye's reuse share of the
+        last frame (reads the right eye's target back: on request only)."""
+        p = self.photons
+        if p.photons is None:
+            return {}
+        out: dict = {"photons": len(p.photons), "gather_ms": p.last_ms, "error": p.error}
+        if p.measure:
+            out["eye_ms"] = list(p.eye_ms)
+        g = p.gmap
+        if g is not None and g.grid is not None:
+            x, y, z = g.grid.dims
+            out["grid"] = f"{x}x{y}x{z} cells of {100 * g.grid.cell:.3g} cm, built in " \
+                          f"{g.build_ms:.0f} ms"
+        elif g is not None:
+            out["grid"] = f"kd-tree of {g.photon_count:,} photons, built in {g.build_ms:.0f} ms"
+        if p.enabled:
+            out.update(p.reuse_stats())
+        return out
 
     def object_ids(self, frame: FrameInput) -> list[np.ndarray]:
         """Mesh index under each pixel of each eye ((H, W) int32, row 0 at the top; -1: none)."""

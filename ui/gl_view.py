@@ -53,6 +53,7 @@ class StereoView(QOpenGLWidget):
         self.ctx: moderngl.Context | None = None
         self.timer = FrameTimer()
         self._pending_scene: Scene | None = session.scene
+        self._pending_photons: tuple | None = None  # (PhotonMap | None,) once set
         self._keys: set[int] = set()
         self._last_tick = time.perf_counter()
         self._drag_from: QPointF | None = None
@@ -88,6 +89,9 @@ class StereoView(QOpenGLWidget):
         if self._pending_scene is not None:
             self.renderer.set_scene(self._pending_scene)
             self._pending_scene = None
+        if self._pending_photons is not None:
+            self.renderer.set_photons(self._pending_photons[0])
+            self._pending_photons = None
         ratio = self.devicePixelRatioF()
         w, h = max(2, int(self.width() * ratio)), max(1, int(self.height() * ratio))
         fbo = self.ctx.detect_framebuffer(self.defaultFramebufferObject())
@@ -108,6 +112,20 @@ class StereoView(QOpenGLWidget):
         self._pending_scene = scene
         self._play_frame = 0
         self.update()
+
+    def set_photons(self, photons) -> None:
+        """The photon map (or None) for the renderer; handed over in the next paintGL."""
+        self._pending_photons = (photons,)
+        self.update()
+
+    def photon_stats(self) -> dict:
+        if self.renderer is None:
+            return {}
+        self.makeCurrent()
+        try:
+            return self.renderer.photon_stats()
+        finally:
+            self.doneCurrent()
 
     def texture_resident_bytes(self) -> int:
         return self.renderer.texture_resident_bytes() if self.renderer is not None else 0

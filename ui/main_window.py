@@ -8,6 +8,7 @@ be loaded gives an error dialog and the current scene stays.
 from __future__ import annotations
 
 import concurrent.futures
+import copy
 import json
 import logging
 import os
@@ -31,8 +32,10 @@ from PyQt6.QtWidgets import (
 
 from app import scenes
 from app.fileio import atomic_write_bytes, atomic_write_json
+from app.indirect import PhotonCache, map_key, wanted
 from app.loaders import SUPPORTED_EXTENSIONS, SceneLoadError
 from app.paths import CameraPath
+from app.photons import TracingCancelled
 from app.scene import Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings, SettingsError
@@ -40,6 +43,7 @@ from app.tcr import phase_name, terms_from_settings
 from ui.cps_panel import CpsPanel
 from ui.gl_view import StereoView, default_format
 from ui.panels import EvaluationBar, SettingsPanel
+from ui.photon_panel import PhotonPanel
 from ui.tcr_panel import TcrPanel
 
 log = logging.getLogger(__name__)
@@ -69,14 +73,28 @@ class MainWindow(QMainWindow):
         self._load_poll.timeout.connect(self._check_load)
         self._loading: tuple[concurrent.futures.Future, str, QProgressDialog] | None = None
         self.normal_mode = False
+        # Photon maps are traced on their own worker thread; the view keeps rendering meanwhile.
+        self.photon_cache = PhotonCache()
+        self._tracer = concurrent.futures.ThreadPoolExecutor(max_workers=1)
+        self._tracing: tuple[concurrent.futures.Future, tuple, Scene, list[bool]] | None = None
+        self._trace_progress = 0.0
+        self._trace_started = 0.0
+        self._trace_failed: tuple | None = None  # key whose tracing failed (not retried)
+        self._photons_shown: object = None
+        self._photon_timer = QTimer(self)
+        self._photon_timer.timeout.connect(self._check_photons)
+        self._photon_timer.start(100)
 
         self.panel = SettingsPanel(self.settings, ("stereo", "render", "navigation", "gaze"))
         self.tcr_panel = TcrPanel(self.session, on_change=self._setting_changed)
         self.cps_panel = CpsPanel(self.settings, self._cps_stats, on_change=self._setting_changed)
+        self.photon_panel = PhotonPanel(self.settings, self._photon_stats,
+                                        on_change=self._setting_changed)
         self.panel.on_change = self._setting_changed
         tabs = QTabWidget()
         tabs.addTab(self.tcr_panel, "TCR")
         tabs.addTab(self.cps_panel, "CPS")
+        tabs.addTab(self.photon_panel, "Photons")
         tabs.addTab(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)
         self.dock.setObjectName("evaluation-panels")
@@ -268,10 +286,13 @@ class MainWindow(QMainWindow):
 
     def _setting_changed(self, key: str) -> None:
         """Keep the panels showing the one model, and redraw."""
-        if key.startswith(("render.", "tcr.", "cps.")) or not key:
+        if key.startswith(("render.", "tcr.", "cps.", "photons.")) or not key:
             self.panel.refresh()
             self.tcr_panel.refresh()
             self.cps_panel.refresh()
+            self.photon_panel.refresh()
+        if key.startswith("photons.") or not key:
+            self._check_photons()
         if key.startswith("cps."):
             self.session.edge = self.session.edge_caps()  # caps show at once, even when paused
         self.view.update()
@@ -285,6 +306,72 @@ class MainWindow(QMainWindow):
             stats["edge_caps"] = [[e.caps[s] for s in ("left", "right", "bottom")] for e in edge]
             stats["edge_distances"] = [[e.distances[s] for s in ("left", "right", "bottom")]
                                        for e in edge]
+        return stats
+
+    # -- photon mapping ------------------------------------------------------------------------
+    def _check_photons(self) -> None:
+        """Keep the view's photon map in step with the scene and the settings: trace on the
+        worker thread when a new map is needed, hand it over when done, drop it when the
+        scene no longer gets indirect light."""
+        scene, s = self.session.scene, self.settings.photons
+        if self._tracing is not None:
+            future, key, traced_scene, cancel = self._tracing
+            if not future.done():
+                if not wanted(s, scene) or key != map_key(s, scene):
+                    cancel[0] = True  # settings moved on: stop, then trace the new one
+                return
+            self._tracing = None
+            try:
+                photons = future.result()
+            except TracingCancelled:
+                photons = None
+            except Exception as exc:  # noqa: BLE001 - a tracer bug must not take the window
+                log.exception("photon tracing failed")
+                self._trace_failed = key
+                self.show_error("Cannot trace photons", f"{traced_scene.name}: {exc}")
+                photons = None
+            if photons is not None:
+                self.photon_cache.store(key, traced_scene, photons)
+                self.photon_cache.trace_ms = (time.monotonic() - self._trace_started) * 1e3
+        current = self.photon_cache.current(s, scene)
+        if current is not self._photons_shown:
+            self._photons_shown = current
+            self.view.set_photons(current)
+        if current is None and wanted(s, scene) and self._tracing is None:
+            key = map_key(s, scene)
+            if key == self._trace_failed:
+                return
+            from app.indirect import trace
+
+            cancel = [False]
+            self._trace_progress = 0.0
+            self._trace_started = time.monotonic()
+
+            def progress(fraction: float) -> None:
+                self._trace_progress = fraction  # read by the panel's 4 Hz poll
+
+            future = self._tracer.submit(trace, copy.copy(s), scene, progress,
+                                         lambda: cancel[0])
+            self._tracing = (future, key, scene, cancel)
+
+    def _photon_stats(self) -> dict:
+        scene, s = self.session.scene, self.settings.photons
+        stats = self.view.photon_stats() if self._photons_shown is not None else {}
+        if not wanted(s, scene):
+            why = "turned off" if s.enabled == "off" else "the scene does not ask for it"
+            stats["status"] = f"off ({why}; set enabled to on to add it)"
+        elif self._tracing is not None:
+            stats["status"] = "tracing photons…"
+            stats["tracing"] = self._trace_progress
+        elif stats.get("error"):
+            stats["status"] = f"unavailable: {stats['error']}"
+        elif self._trace_failed == map_key(s, scene):
+            stats["status"] = "tracing failed (see the log)"
+        else:
+            why = "turned on" if s.enabled == "on" else "the scene asks for it"
+            stats["status"] = f"on ({why})"
+        if self.photon_cache.map is not None and self._photons_shown is not None:
+            stats["trace_ms"] = self.photon_cache.trace_ms
         return stats
 
     # -- viewpoints and paths ------------------------------------------------------------------
@@ -371,6 +458,9 @@ class MainWindow(QMainWindow):
         QApplication.instance().removeEventFilter(self)
         self.view.release_gl()
         self._loader.shutdown(wait=False, cancel_futures=True)
+        if self._tracing is not None:
+            self._tracing[3][0] = True
+        self._tracer.shutdown(wait=False, cancel_futures=True)
         super().closeEvent(event)
 
 

@@ -8,6 +8,11 @@ uniform mat4 u_inv_view_projection;
 uniform vec3 u_eye;
 uniform ivec2 u_size;
 uniform vec3 u_background;
+#ifdef INDIRECT
+// Photon-map irradiance E per pixel (photon_gather.comp.glsl); the indirect light leaving a
+// diffuse surface is its diffuse colour / pi * E, scaled by the dimmer like the lights.
+uniform sampler2D u_indirect;
+#endif
 
 vec3 light_texel(ivec2 p) {
 #ifdef TILED_LIGHTS
@@ -22,5 +27,10 @@ vec3 light_texel(ivec2 p) {
     vec3 P = world.xyz / world.w;
     vec3 V = safe_normalize(u_eye - P, vec3(0.0, 0.0, 1.0));
     vec3 N = safe_normalize(normal.xyz, vec3(0.0, 1.0, 0.0));
-    return shade(P, N, V, albedo.rgb, normal.w, albedo.a);
+    vec3 c = shade(P, N, V, albedo.rgb, normal.w, albedo.a);
+#ifdef INDIRECT
+    vec3 E = texelFetch(u_indirect, p, 0).rgb;
+    c = storable(c + albedo.rgb * (1.0 - albedo.a) / PI * E * u_light_scale);
+#endif
+    return c;
 }

@@ -17,6 +17,13 @@ const vec3 LEVEL_COLOURS[6] = vec3[6](vec3(1.0), vec3(0.15, 0.35, 1.0), vec3(0.0
                                       vec3(1.0, 0.1, 0.1));
 #endif
 
+#ifdef SHOW_REUSE
+// Stereo reuse of the indirect light: right-eye pixels copied from the left eye green,
+// gathered ones red (alpha of the irradiance target: 2 reused, 1 gathered).
+uniform sampler2D u_indirect;
+uniform int u_paint_reuse;  // 1 for the right eye
+#endif
+
 vec3 tonemap(vec3 x) {  // Narkowicz's ACES fit: filmic shoulder, keeps mid-tones.
     return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
 }
@@ -33,6 +40,13 @@ void main() {
 #ifdef VISUALIZE
     int s = int(texelFetch(u_levels, q >> 1, 0).r);
     if (s > 0) c = mix(c, LEVEL_COLOURS[min(s, 5)], 0.5);
+#endif
+#ifdef SHOW_REUSE
+    if (u_paint_reuse == 1) {
+        float how = texelFetch(u_indirect, q, 0).a;
+        if (how == 2.0) c = mix(c, vec3(0.1, 0.85, 0.1), 0.45);
+        else if (how == 1.0) c = mix(c, vec3(1.0, 0.1, 0.1), 0.45);
+    }
 #endif
     out_color = vec4(c, 1.0);
 }

@@ -1,0 +1,424 @@
+"""Photon tracing (Jensen style): light paths from the scene's lights, stored at diffuse hits.
+
+Two kinds of light emit photons:
+
+* **Point lights**, isotropically, with flux ``4 pi I color / n`` per photon. The renderer's
+  direct light is not physical (``E = I color window(d) / (d^2 + 1) cos``), so at a photon's
+  first hit its flux is multiplied by ``window(d) d^2 / (d^2 + 1)``: the first-hit photon density
+  then equals the renderer's direct irradiance, and the indirect light it seeds matches what the
+  renderer shows as direct light. That first hit is *not* stored (the direct part stays analytic
+  in the renderer); later diffuse hits are.
+* **Emissive triangles** (area lights: ``material.emissive`` is linear RGB radiance), sampled by
+  ``area * luminance(emissive)``, a uniform point on the triangle and a cosine-weighted direction;
+  the total power is ``pi * sum(A_i L_e_i)``. A triangle emits from its *front* face, the side its
+  vertex normals point to (a window or a downlight set a few millimetres in front of a wall or
+  ceiling would otherwise waste half its light into the wall behind it); where the vertex
+  normals do not say (missing, or nearly perpendicular to the triangle), it emits from a side
+  picked at random for each photon. The renderer has no analytic light from emissive surfaces, so
+  every hit of these paths is stored, the first included.
+
+At each hit the surface is treated as Lambertian with reflectance ``rho = base_color.rgb *
+(1 - metallic)``, times the mean linear colour of its texture and the mean of its vertex colours
+if it has them (a per-mesh approximation: no per-texel lookup). The stored flux is the flux that
+arrived (before ``rho``: the gather multiplies by the receiver's ``rho / pi``); Russian roulette
+with ``p = clamp(max(rho), 0.05, 0.95)`` then decides whether the path goes on with flux
+``flux * rho / p`` in a cosine-weighted direction about the geometric normal turned towards the
+incoming ray (every surface is two-sided, as the renderer draws it). Specular reflection is not
+traced: a metal's photons are stored where they land, then absorbed (its diffuse rho is 0).
+
+All random numbers come from ``np.random.default_rng(seed)`` in a fixed order and embree answers
+are deterministic, so one seed and one scene give byte-identical photon maps.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.photon_map import PhotonMap, encode_directions
+from app.raycast import RayCaster
+from app.scene import Material, Scene
+
+#: Photon paths traced together: one batched embree call per bounce for this many live rays.
+CHUNK = 2 ** 18
+#: Rec. 709 luminance weights, to share photons between lights by visible power.
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+#: Russian-roulette survival bounds (a bright wall still loses some paths; a dark one keeps a few).
+P_MIN, P_MAX = 0.05, 0.95
+#: Offset of a new ray's origin off its surface, in units of the scene's bounds diagonal.
+OFFSET_SCALE = 1e-4
+#: Vertex normals this close to the triangle's plane do not tell an emitter's front face.
+FRONT_MIN_COS = 0.1
+
+
+class TracingCancelled(Exception):
+    """Raised by :func:`trace_photons` when its ``cancel`` callback returns True."""
+
+
+def scene_scale(scene: Scene) -> float:
+    """The diagonal of the scene's finite vertex bounds in metres; 1.0 if it has none."""
+    pts = [np.asarray(m.positions, np.float64).reshape(-1, 3) for m in scene.meshes]
+    pts = [p[np.isfinite(p).all(axis=1)] for p in pts]
+    return _diagonal(np.concatenate(pts) if pts else np.zeros((0, 3)))
+
+
+def trace_photons(scene: Scene, count: int, seed: int = 0, *, max_bounces: int = 8,
+                  progress: Callable[[float], None] | None = None,
+                  cancel: Callable[[], bool] | None = None,
+                  caster: RayCaster | None = None) -> PhotonMap:
+    """Trace ``count`` photon paths from the scene's lights and return the stored photons.
+
+    ``max_bounces`` is the number of diffuse reflections a path may make (so at most
+    ``max_bounces + 1`` hits). ``progress(fraction)`` is called after every batched bounce;
+    ``cancel()`` is polled before each and raises :class:`TracingCancelled` when true. A
+    ``caster`` built from ``scene.triangles()`` is reused (else one is built here).
+    """
+    count = max(int(count), 0)
+    max_bounces = max(int(max_bounces), 0)
+    notes: list[str] = []
+    rng = np.random.default_rng(seed)
+
+    tris, owner, vnormal = _scene_geometry(scene)
+    finite = np.isfinite(tris).all(axis=(1, 2))
+    if (~finite).any():
+        notes.append(f"{int((~finite).sum())} triangles with non-finite vertices ignored")
+    if caster is not None and not _caster_matches(caster, tris[finite]):
+        notes.append("the given ray caster was not built from this scene's triangles; rebuilt")
+        caster = None
+    if caster is None:
+        caster = RayCaster(tris, owner)
+    geo = _Geometry.build(scene, caster, owner[finite], vnormal[finite], notes)
+    sources = _light_sources(scene, geo, notes)
+
+    out_pos: list[np.ndarray] = [np.zeros((0, 3), np.float32)]
+    out_pow: list[np.ndarray] = [np.zeros((0, 3), np.float32)]
+    out_dir: list[np.ndarray] = [np.zeros(0, np.uint32)]
+
+    def done(emitted: int) -> PhotonMap:
+        _report(progress, 1.0)
+        return PhotonMap(np.concatenate(out_pos), np.concatenate(out_pow),
+                         np.concatenate(out_dir), emitted, int(seed), notes)
+
+    if sources is None or count == 0:
+        return done(0 if sources is None else count)
+    if geo.tri.shape[0] == 0:
+        notes.append("the scene has no geometry: every photon escapes")
+
+    per_source = _allocate(sources.power_luma, count)
+    starved = int(((per_source == 0) & (sources.power_luma > 0)).sum())
+    if starved:
+        notes.append(f"{starved} light(s) too dim for a photon out of {count}; their light lost")
+    bounds = np.concatenate([[0], np.cumsum(per_source)])
+    batches = max(1, math.ceil(count / CHUNK))
+    for b in range(batches):
+        start, stop = b * CHUNK, min(count, (b + 1) * CHUNK)
+        src = np.searchsorted(bounds, np.arange(start, stop), side="right") - 1
+        o, d, flux, reach = sources.emit(src, per_source, rng, geo)
+        is_point = src < sources.n_point  # only their first hits are windowed and not stored
+        for bounce in range(max_bounces + 1):
+            if cancel is not None and cancel():
+                raise TracingCancelled("photon tracing cancelled")
+            dist, tri = caster.cast_triangles(o, d)
+            alive = tri >= 0
+            alive[alive] = geo.usable[tri[alive]]  # a degenerate triangle absorbs
+            if bounce == 0:
+                # The renderer's direct-light falloff, so the first hits match its direct light.
+                alive &= ~is_point | (dist < reach)
+                d2 = np.where(is_point, dist * dist, 0.0)
+                with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                    x = d2 / np.where(is_point, reach * reach, 1.0)
+                    factor = np.clip(1.0 - x * x, 0.0, 1.0) ** 2 * d2 / (d2 + 1.0)
+                flux = np.where(is_point[:, None], flux * factor[:, None], flux)
+                store = ~is_point
+            else:
+                store = np.ones(len(o), bool)
+            ok = np.isfinite(flux).all(axis=1) & (flux.max(axis=1, initial=0.0) > 0.0)
+            alive &= ok
+            o, d, flux, dist, tri, store = (o[alive], d[alive], flux[alive], dist[alive],
+                                            tri[alive], store[alive])
+            p = o + d * dist[:, None]
+            if store.any():
+                out_pos.append(p[store].astype(np.float32))
+                out_pow.append(flux[store].astype(np.float32))
+                out_dir.append(encode_directions(d[store]))
+            if bounce == max_bounces or len(o) == 0:
+                _report(progress, (b + 1) / batches)
+                break
+            # Russian roulette on the diffuse reflectance, then a cosine-weighted bounce.
+            rho = geo.rho[tri]
+            keep = np.clip(rho.max(axis=1), P_MIN, P_MAX)
+            u = rng.random((len(o), 3))
+            survive = (u[:, 0] < keep) & (rho.max(axis=1) > 0.0)
+            n = geo.normal[tri]
+            n = np.where((np.einsum("ij,ij->i", n, d) > 0.0)[:, None], -n, n)
+            flux = flux * rho / keep[:, None]
+            d = _cosine_directions(n, u[:, 1], u[:, 2])
+            o = p + n * geo.offset
+            o, d, flux = o[survive], d[survive], flux[survive]
+            _report(progress, (b + (bounce + 1) / (max_bounces + 1)) / batches)
+    return done(count)
+
+
+def _report(progress: Callable[[float], None] | None, fraction: float) -> None:
+    if progress is not None:
+        progress(float(min(max(fraction, 0.0), 1.0)))
+
+
+# -- geometry and materials -------------------------------------------------------------------
+
+def _scene_geometry(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Triangles (T, 3, 3) float64 in ``scene.triangles()`` order, owning mesh, mean vertex normal.
+
+    Unlike ``scene.triangles()`` this tolerates out-of-range indices (that triangle becomes NaN
+    and is dropped like any non-finite one) and missing normals (NaN normal: emits both sides).
+    """
+    tris, owner, vn = [], [], []
+    for i, m in enumerate(scene.meshes):
+        # float32 first, exactly as scene.triangles(), so a caster built from that matches.
+        pos = np.asarray(m.positions, np.float32).reshape(-1, 3).astype(np.float64)
+        idx = np.asarray(m.indices).reshape(-1, 3).astype(np.int64)
+        bad = ((idx < 0) | (idx >= len(pos))).any(axis=1)
+        safe = np.clip(idx, 0, max(len(pos) - 1, 0))
+        t = pos[safe] if len(pos) else np.full(idx.shape + (3,), np.nan)
+        t[bad] = np.nan
+        normals = np.asarray(m.normals, np.float64).reshape(-1, 3) if m.normals is not None \
+            else np.zeros((0, 3))
+        if normals.shape[0] == len(pos) and len(pos):
+            nv = normals[safe].mean(axis=1)
+        else:
+            nv = np.full((len(idx), 3), np.nan)
+        tris.append(t)
+        owner.append(np.full(len(idx), i, np.int64))
+        vn.append(nv)
+    if not tris:
+        return np.zeros((0, 3, 3)), np.zeros(0, np.int64), np.zeros((0, 3))
+    return np.concatenate(tris), np.concatenate(owner), np.concatenate(vn)
+
+
+def _caster_matches(caster: RayCaster, tris: np.ndarray) -> bool:
+    return (getattr(caster, "source_index", None) is not None
+            and caster.tri.shape == tris.shape and bool(np.array_equal(caster.tri, tris)))
+
+
+def _diagonal(points: np.ndarray) -> float:
+    if points.shape[0] == 0:
+        return 1.0
+    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    return diag if math.isfinite(diag) and diag > 0.0 else 1.0
+
+
+@dataclass
+class _Geometry:
+    """Per-triangle data in the caster's (finite-filtered) triangle order."""
+
+    tri: np.ndarray  # (T, 3, 3) float64
+    normal: np.ndarray  # (T, 3) unit geometric normal (winding order), zero if degenerate
+    area: np.ndarray  # (T,)
+    usable: np.ndarray  # (T,) bool: has a normal (a degenerate triangle absorbs)
+    rho: np.ndarray  # (T, 3) diffuse reflectance
+    emissive: np.ndarray  # (T, 3) linear radiance
+    front: np.ndarray  # (T,) +1 / -1 emitting side along ``normal``, 0 = both
+    offset: float  # ray origin offset off a surface, metres
+
+    @staticmethod
+    def build(scene: Scene, caster: RayCaster, mesh: np.ndarray, vnormal: np.ndarray,
+              notes: list[str]) -> _Geometry:
+        tri = caster.tri
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(cross, axis=1)
+        usable = np.isfinite(length) & (length > 1e-20)
+        normal = np.where(usable[:, None], cross / np.where(usable, length, 1.0)[:, None], 0.0)
+        area = np.where(usable, 0.5 * length, 0.0)
+        rho_m, emit_m = _mesh_optics(scene, notes)
+        rho = rho_m[mesh] if len(mesh) else np.zeros((0, 3))
+        emissive = emit_m[mesh] if len(mesh) else np.zeros((0, 3))
+        with np.errstate(invalid="ignore"):
+            cos = np.einsum("ij,ij->i", np.nan_to_num(vnormal, nan=0.0), normal) / np.maximum(
+                np.linalg.norm(np.nan_to_num(vnormal, nan=0.0), axis=1), 1e-20)
+        front = np.where(cos > FRONT_MIN_COS, 1, np.where(cos < -FRONT_MIN_COS, -1, 0))
+        scale = _diagonal(tri.reshape(-1, 3))
+        return _Geometry(tri, normal, area, usable, rho, emissive, front.astype(np.int8),
+                         OFFSET_SCALE * scale)
+
+
+def _mesh_optics(scene: Scene, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Diffuse reflectance and emitted radiance per mesh, (M, 3) each, finite and >= 0."""
+    texture_mean: dict[int, np.ndarray] = {}
+    rho = np.zeros((len(scene.meshes), 3))
+    emit = np.zeros((len(scene.meshes), 3))
+    for i, m in enumerate(scene.meshes):
+        if 0 <= m.material < len(scene.materials):
+            mat = scene.materials[m.material]
+        else:
+            notes.append(f"mesh '{m.name}': material {m.material} missing, default grey")
+            mat = Material("default")
+        base = _clean(mat.base_color[:3], 1.0)
+        metallic = float(np.clip(np.nan_to_num(float(mat.metallic), nan=0.0), 0.0, 1.0))
+        r = base * (1.0 - metallic)
+        tex = mat.texture
+        if tex is not None and 0 <= tex < len(scene.textures):
+            if tex not in texture_mean:
+                texture_mean[tex] = _texture_mean_linear(scene.textures[tex].rgba)
+            r = r * texture_mean[tex]
+        if m.colors is not None:
+            c = np.asarray(m.colors, np.float64)
+            if c.ndim == 2 and c.shape[1] >= 3 and c.shape[0]:
+                with np.errstate(invalid="ignore"):
+                    r = r * _clean(np.nanmean(np.where(np.isfinite(c[:, :3]), c[:, :3], np.nan),
+                                              axis=0), 1.0)
+        rho[i] = np.clip(r, 0.0, 1.0)
+        emit[i] = np.clip(np.nan_to_num(np.asarray(mat.emissive, np.float64)[:3], nan=0.0,
+                                        posinf=0.0, neginf=0.0), 0.0, 1e6)
+    return rho, emit
+
+
+def _clean(values, fallback: float) -> np.ndarray:
+    v = np.asarray(values, np.float64).reshape(-1)[:3]
+    v = np.where(np.isfinite(v), v, fallback)
+    return np.clip(v, 0.0, 1.0)
+
+
+def _srgb_to_linear(f: np.ndarray) -> np.ndarray:
+    return np.where(f <= 0.04045, f / 12.92, ((f + 0.055) / 1.055) ** 2.4)
+
+
+_SRGB_LUT = _srgb_to_linear(np.arange(256) / 255.0)
+
+
+def _texture_mean_linear(rgba: np.ndarray) -> np.ndarray:
+    """Mean linear RGB of an sRGB texture (alpha ignored); white if unreadable."""
+    a = np.asarray(rgba)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.size == 0:
+        return np.ones(3)
+    rgb = a[:, :, :3] if a.shape[2] >= 3 else np.repeat(a[:, :, :1], 3, axis=2)
+    if rgb.dtype == np.uint8:
+        lin = _SRGB_LUT[rgb]
+    else:
+        f = rgb.astype(np.float64)
+        if np.issubdtype(rgb.dtype, np.integer):
+            f = f / float(np.iinfo(rgb.dtype).max)
+        f = np.clip(np.nan_to_num(f, nan=0.0), 0.0, 1.0)
+        lin = _srgb_to_linear(f)
+    return lin.reshape(-1, 3).mean(axis=0)
+
+
+# -- lights ------------------------------------------------------------------------------------
+
+@dataclass
+class _Sources:
+    """Point lights (one source each), then all emissive triangles as one last source."""
+
+    position: np.ndarray  # (P, 3) point-light positions
+    flux: np.ndarray  # (P, 3) total RGB power of each point light, 4 pi I color
+    reach: np.ndarray  # (P,) range in metres (inf allowed)
+    area_tri: np.ndarray  # (E,) emissive triangle indices into the geometry
+    area_cdf: np.ndarray  # (E,) cumulative area * luminance(L_e)
+    power_luma: np.ndarray  # (P [+1],) luminance power per source: photons are shared by it
+
+    @property
+    def n_point(self) -> int:
+        return int(self.position.shape[0])
+
+    def emit(self, src: np.ndarray, per_source: np.ndarray, rng: np.random.Generator,
+             geo: _Geometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Origins, directions, flux and first-hit reach (point lights' range) of new paths."""
+        m = len(src)
+        u = rng.random((m, 6))  # direction (2), triangle, barycentrics (2), side
+        o = np.zeros((m, 3))
+        d = np.zeros((m, 3))
+        flux = np.zeros((m, 3))
+        reach = np.full(m, np.inf)
+        pt = src < self.n_point
+        if pt.any():
+            s = src[pt]
+            z = 1.0 - 2.0 * u[pt, 0]
+            r = np.sqrt(np.clip(1.0 - z * z, 0.0, None))
+            phi = 2.0 * np.pi * u[pt, 1]
+            d[pt] = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+            o[pt] = self.position[s]
+            flux[pt] = self.flux[s] / per_source[s][:, None]
+            reach[pt] = self.reach[s]
+        ar = ~pt
+        if ar.any():
+            total = self.area_cdf[-1]
+            k = np.searchsorted(self.area_cdf, u[ar, 2] * total, side="right")
+            t = self.area_tri[np.minimum(k, len(self.area_tri) - 1)]
+            sq = np.sqrt(u[ar, 3])
+            b1, b2 = sq * (1.0 - u[ar, 4]), sq * u[ar, 4]
+            tri = geo.tri[t]
+            point = tri[:, 0] + b1[:, None] * (tri[:, 1] - tri[:, 0]) \
+                + b2[:, None] * (tri[:, 2] - tri[:, 0])
+            side = geo.front[t].astype(np.float64)
+            side = np.where(side == 0, np.where(u[ar, 5] < 0.5, -1.0, 1.0), side)
+            n = geo.normal[t] * side[:, None]
+            d[ar] = _cosine_directions(n, u[ar, 0], u[ar, 1])
+            o[ar] = point + n * geo.offset
+            # pdf of triangle t is A_t lum_t / total; its power is pi A_t L_e: flux per photon.
+            le = geo.emissive[t]
+            lum = np.maximum(le @ LUMA, 1e-300)
+            flux[ar] = np.pi * le * (total / lum)[:, None] / per_source[self.n_point]
+        return o, d, flux, reach
+
+
+def _light_sources(scene: Scene, geo: _Geometry, notes: list[str]) -> _Sources | None:
+    pos, flux, reach = [], [], []
+    for i, light in enumerate(scene.lights):
+        p = np.asarray(light.position, np.float64).reshape(-1)[:3]
+        c = np.asarray(light.color, np.float64).reshape(-1)[:3]
+        inten, rng_m = float(light.intensity), float(light.range_m)
+        if p.size < 3 or not np.isfinite(p).all():
+            notes.append(f"light {i}: non-finite position, skipped")
+            continue
+        if c.size < 3 or not np.isfinite(c).all() or not math.isfinite(inten) \
+                or math.isnan(rng_m):
+            notes.append(f"light {i}: non-finite colour, intensity or range, skipped")
+            continue
+        c = np.clip(c, 0.0, None)
+        if inten <= 0.0 or rng_m <= 0.0 or float(c @ LUMA) <= 0.0:
+            continue  # emits nothing: not worth a note (a light switched off)
+        pos.append(p)
+        flux.append(4.0 * np.pi * inten * c)
+        reach.append(rng_m)
+    weight = geo.area * (geo.emissive @ LUMA) if len(geo.area) else np.zeros(0)
+    weight = np.where(np.isfinite(weight), weight, 0.0)
+    area_tri = np.flatnonzero(weight > 0.0)
+    area_cdf = np.cumsum(weight[area_tri])
+    luma = [float(f @ LUMA) for f in flux]
+    if len(area_tri):
+        luma.append(float(np.pi * area_cdf[-1]))
+    if not luma or not np.isfinite(luma).all() or sum(luma) <= 0.0:
+        notes.append("no light in the scene emits: empty photon map")
+        return None
+    return _Sources(np.reshape(pos, (-1, 3)), np.reshape(flux, (-1, 3)), np.asarray(reach),
+                    area_tri, area_cdf, np.asarray(luma))
+
+
+def _allocate(power: np.ndarray, count: int) -> np.ndarray:
+    """Photons per source, proportional to power, by largest remainder (deterministic)."""
+    share = power / power.sum() * count
+    n = np.floor(share).astype(np.int64)
+    rest = count - int(n.sum())
+    if rest > 0:
+        order = np.argsort(-(share - n), kind="stable")
+        n[order[:rest]] += 1
+    return n
+
+
+def _cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Cosine-weighted unit directions about unit normals ``n`` (N, 3)."""
+    r = np.sqrt(u1)
+    phi = 2.0 * np.pi * u2
+    x, y, z = r * np.cos(phi), r * np.sin(phi), np.sqrt(np.clip(1.0 - u1, 0.0, None))
+    # Orthonormal basis without a branch on the normal (Duff et al. 2017).
+    sign = np.where(n[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    t = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], axis=1)
+    s = np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
+    d = t * x[:, None] + s * y[:, None] + n * z[:, None]
+    return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)

@@ -1,0 +1,186 @@
+"""Photon-mapped indirect light in the frame: the gather per eye, with stereo reuse.
+
+The photon map is traced on the CPU (``app.photons``) by the host and handed over with
+``PhotonPass.set_photons``; this pass keeps it on the GPU for the current radius and gather
+variant (``render.photon_gather``) and writes each eye's irradiance E into an rgba32f target
+that the deferred lighting adds (``deferred.glsl``, INDIRECT). Alpha marks how a pixel got its
+value: 1 gathered, 2 reused from the left eye, 0 nothing (background, or not a block sample).
+
+Stereo reuse (paper 3.3): the left eye gathers first; ``photon_reuse.comp.glsl`` lets each
+left hit point that the right eye sees claim its right-eye pixel; the right eye then gathers
+only where no left point landed.
+"""
+
+from __future__ import annotations
+
+import time
+
+import moderngl
+import numpy as np
+
+from app.camera import gl_bytes
+from app.photon_map import PhotonMap
+from app.settings import PhotonSettings
+from render.passes import FrameContext, RenderPass
+from render.photon_gather import GpuPhotonMap, PhotonGather
+from render.shaders import ShaderLibrary
+
+NO_WINNER = 0xFFFFFFFF
+STRUCTURE = {"radius": "grid", "heap": "grid", "shared": "grid", "radius-half": "grid-half",
+             "kdtree": "kdtree", "kdtree-heap": "kdtree"}
+
+
+class PhotonPass(RenderPass):
+    name = "photons"
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
+        super().__init__(ctx, shaders)
+        self.gather = PhotonGather(ctx, shaders)
+        self.settings = PhotonSettings()
+        self.photons: PhotonMap | None = None
+        self.gmap: GpuPhotonMap | None = None
+        self._gmap_key: tuple | None = None
+        self.outputs: list[moderngl.Texture] = []
+        self.winner: moderngl.Texture | None = None
+        self._clear_winner = b""
+        self.block_rate = False
+        self.level_maps: list[moderngl.Texture] | None = None
+        self.measure = False  # bench: wall-clock per eye (waits for the GPU between eyes)
+        self.eye_ms = [0.0, 0.0]
+        self.error: str | None = None  # why there is no indirect light (a grid too large...)
+
+    # -- inputs --------------------------------------------------------------------------------
+    def set_photons(self, photons: PhotonMap | None) -> None:
+        if photons is not self.photons:
+            self.photons = photons
+            self._drop_map()
+
+    def _drop_map(self) -> None:
+        if self.gmap is not None:
+            self.gmap.release()
+        self.gmap, self._gmap_key = None, None
+
+    def _ensure_map(self) -> GpuPhotonMap | None:
+        s = self.settings
+        key = (id(self.photons), s.radius_m, STRUCTURE[s.gather])
+        if key != self._gmap_key:
+            self._drop_map()
+            self._gmap_key = key
+            self.error = None
+            try:
+                self.gmap = GpuPhotonMap(self.ctx, self.photons, s.radius_m, STRUCTURE[s.gather])
+            except ValueError as exc:  # GridTooLarge: a clear message, no indirect light
+                self.error = str(exc)
+        return self.gmap
+
+    @property
+    def active(self) -> bool:
+        return self.enabled and self.photons is not None
+
+    def _ensure_targets(self, size: tuple[int, int]) -> None:
+        if self.outputs and self.outputs[0].size == size:
+            return
+        self._release_targets()
+        for _ in range(2):
+            tex = self.ctx.texture(size, 4, dtype="f4")
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self.outputs.append(tex)
+        self.winner = self.ctx.texture(size, 1, dtype="u4")
+        self.winner.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._clear_winner = np.full(size[0] * size[1], NO_WINNER, np.uint32).tobytes()
+        self._clear_output = np.zeros(size[0] * size[1] * 4, np.float32).tobytes()
+
+    # -- the frame -----------------------------------------------------------------------------
+    def execute(self, frame: FrameContext) -> None:
+        if self.photons is None:
+            return
+        gmap = self._ensure_map()
+        if gmap is None:
+            return
+        s = self.settings
+        size = frame.targets[0].size
+        self._ensure_targets(size)
+        levels = self.level_maps if self.block_rate else None
+        reuse = s.stereo_reuse
+        for index, (eye, tgt) in enumerate(zip(frame.eyes, frame.targets)):
+            start = self._mark()
+            out = self.outputs[index]
+            if self.block_rate:  # only block samples are written: no stale values elsewhere
+                out.write(self._clear_output)
+            reuse_input = None
+            if index == 1 and reuse:
+                reuse_input = self._scatter(frame, levels)
+            self.gather.gather_image(
+                gmap, s.gather, depth=tgt.depth, normal=tgt.normal,
+                inv_view_projection=eye.inverse_view_projection, size=size, out=out, k=s.k,
+                block_rate=self.block_rate, levels=levels[index] if levels else None,
+                reuse=reuse_input)
+            self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
+                                    | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+            self.eye_ms[index] = self._mark() - start if self.measure else 0.0
+        frame.indirect = list(self.outputs)
+        frame.show_reuse = s.show_reuse and reuse
+
+    def _mark(self) -> float:
+        if not self.measure:
+            return 0.0
+        self.ctx.finish()
+        return time.perf_counter() * 1e3
+
+    def _scatter(self, frame: FrameContext, levels: list[moderngl.Texture] | None):
+        """Left hit points claim the right-eye pixels that see them (photon_reuse.comp.glsl)."""
+        assert self.winner is not None
+        left, right = frame.eyes
+        tl, tr = frame.targets
+        self.winner.write(self._clear_winner)
+        prog = self.shaders.compute("photon_reuse.comp.glsl", {"BLOCK_RATE": levels is not None})
+        tl.depth.use(1)
+        tr.depth.use(2)
+        prog["u_left_depth"].value, prog["u_right_depth"].value = 1, 2
+        if levels is not None:
+            levels[0].use(4)
+            prog["u_levels"].value = 4
+        prog["u_left_inv_view_projection"].write(gl_bytes(left.inverse_view_projection))
+        prog["u_right_view_projection"].write(gl_bytes(right.view_projection))
+        prog["u_right_inv_view_projection"].write(gl_bytes(right.inverse_view_projection))
+        prog["u_size"].value = tl.size
+        prog["u_tolerance"].value = self.settings.reuse_tolerance
+        self.winner.bind_to_image(3, read=True, write=True)
+        w, h = tl.size
+        prog.run(-(-w // 8), -(-h // 8))
+        self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+                                | moderngl.TEXTURE_FETCH_BARRIER_BIT)
+        return (self.winner, self.outputs[0])
+
+    # -- statistics ----------------------------------------------------------------------------
+    def reuse_stats(self) -> dict:
+        """Right-eye pixels reused from the left eye and gathered, from the last frame (read
+        back on request)."""
+        if len(self.outputs) < 2 or self.photons is None or self.gmap is None:
+            return {}
+        tex = self.outputs[1]
+        alpha = np.frombuffer(tex.read(), np.float32).reshape(-1, 4)[:, 3]
+        reused = int(np.count_nonzero(alpha == 2.0))
+        gathered = int(np.count_nonzero(alpha == 1.0))
+        return {"reused": reused, "gathered": gathered,
+                "reuse_share": reused / max(1, reused + gathered)}
+
+    def read_indirect(self, eye: int) -> np.ndarray:
+        """One eye's irradiance target as (H, W, 4) float32, row 0 at the top."""
+        tex = self.outputs[eye]
+        data = np.frombuffer(tex.read(), np.float32).reshape(tex.size[1], tex.size[0], 4)
+        return np.flipud(data).copy()
+
+    def _release_targets(self) -> None:
+        for tex in self.outputs:
+            tex.release()
+        self.outputs = []
+        if self.winner is not None:
+            self.winner.release()
+            self.winner = None
+
+    def release(self) -> None:
+        super().release()
+        self._drop_map()
+        self._release_targets()
+        self.gather.release()
