@@ -9,7 +9,7 @@ APT_PKGS := libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-re
 	libxcb-xinerama0 libxcb-xkb1 libxcb-shape0 libxcb-randr0 libxkbcommon-x11-0 \
 	libdbus-1-3 libfontconfig1 xvfb xauth libegl1 libgl1 libgl1-mesa-dri libegl-mesa0
 
-.PHONY: bench-tcr bench-cps run test sysdeps venv lint bench clean dist
+.PHONY: bench-tcr bench-cps bench-photons run test sysdeps venv lint bench clean dist
 
 sysdeps:
 	@if ! command -v dpkg-query >/dev/null; then \
@@ -56,6 +56,11 @@ bench-tcr: sysdeps $(STAMP)
 
 bench-cps: sysdeps $(STAMP)
 	$(VENV)/bin/vrpreview experiments cps --out out/bench-cps
+
+# bench-photons (issue 5): the photon-mapping paper's Tables 1-5 on the showroom and the
+# comparison with scipy's cKDTree on the same photons and query points.
+bench-photons: sysdeps $(STAMP)
+	$(VENV)/bin/vrpreview experiments photons --out out/bench-photons
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

@@ -16,16 +16,17 @@ from pathlib import Path
 import numpy as np
 
 from app import metrics, scenes
-from app.cps import detail_map
 from app.fileio import atomic_write_json, atomic_write_png
 from app.overlay_text import text_image
 from app.paths import FIXED_DT, CameraPath
+from app.quality import full_quality, stereo_fovea
 from app.session import Session
 from app.settings import Settings
 from app.stats import overlay_lines, summarize
 
 log = logging.getLogger(__name__)
 Progress = Callable[[int, int], None]
+_last_fraction = -1.0
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -54,6 +55,10 @@ def _open(scene_name: str, size: tuple[int, int], settings: Settings,
 
 def print_trace_progress(fraction: float) -> None:
     """A text progress bar for photon tracing on stderr."""
+    global _last_fraction
+    if fraction == _last_fraction:
+        return
+    _last_fraction = fraction
     filled = int(round(30 * min(max(fraction, 0.0), 1.0)))
     end = "\n" if fraction >= 1.0 else ""
     print(f"\rtracing photons [{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:3.0f}%",
@@ -147,8 +152,7 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
                 record["error"] = whole
                 errors_whole.append({**whole, "state": session.state})
                 if frame.eyes[0].width > 0:
-                    fovea = np.hstack([np.flipud(_fovea_mask(session, frame, e))
-                                       for e in range(2)])
+                    fovea = stereo_fovea(settings.cps, frame)
                     for region, mask in (("fovea", fovea), ("periphery", ~fovea)):
                         if mask.any():
                             err = metrics.compare(ref_img, test_img, ppd, mask)
@@ -227,32 +231,13 @@ def _photon_summary(frames: list[dict], trace_ms: float) -> dict | None:
     shares = [f["reuse_share"] for f in frames if "reuse_share" in f]
     return {"stored": frames[0].get("photons", 0), "trace_ms": trace_ms,
             "grid": frames[0].get("grid"), "error": frames[0].get("error"),
-            "gather_ms": float(np.median([f.get("gather_ms", 0.0) for f in frames])),
+            # Wall-clock per eye where measured: moderngl's timer query is 32-bit (wraps at
+            # 4.29 s, which a 512^2 photon gather on llvmpipe can pass).
+            "gather_ms": float(np.median(eye_ms.sum(axis=1))) if eye_ms.any() else
+            float(np.median([f.get("gather_ms", 0.0) for f in frames])),
             "left_eye_ms": float(np.median(eye_ms[:, 0])),
             "right_eye_ms": float(np.median(eye_ms[:, 1])),
             "reuse_share": float(np.median(shares)) if shares else None}
-
-
-# The converged photon map: 4M photon paths gathered within 10 cm (in the showroom about 900
-# photons per estimate: ~3% noise at a 10 cm blur), the same for every run of a sweep.
-CONVERGED_PHOTONS = 1 << 22
-CONVERGED_RADIUS_M = 0.1
-
-
-def full_quality(settings: Settings) -> Settings:
-    """The reference a setting's errors are measured against: finest textures (TCR off),
-    full-rate lighting without a mask (CPS none) and, where there is indirect light, the
-    converged photon map gathered separately per eye; everything else the same."""
-    ref = settings.copy()
-    ref.tcr.enabled = False
-    ref.cps.mode = "none"
-    ref.cps.visualize = False
-    ref.photons.photons = CONVERGED_PHOTONS
-    ref.photons.radius_m = CONVERGED_RADIUS_M
-    ref.photons.gather = "radius"
-    ref.photons.stereo_reuse = False
-    ref.photons.show_reuse = False
-    return ref
 
 
 _converged: dict[tuple, tuple] = {}  # (scene, count, seed, bounces) -> (scene, PhotonMap)
@@ -271,23 +256,6 @@ def _share_converged(host, scene_name: str, scene) -> None:
         _converged.clear()  # one at a time: a 4M map is 128 MB
         _converged[memo] = trace(s, scene, print_trace_progress)
     host.photon_cache.store(map_key(s, scene), scene, _converged[memo])
-
-
-def _fovea_mask(session: Session, frame, eye: int) -> np.ndarray:
-    """Pixels of one eye the detail map keeps at level 0 (GL row order, row 0 at the bottom).
-
-    With CPS on these are the pixels it shades at full rate. Without CPS the fovea is the same
-    region around the gaze by angle alone (``cps.fovea_deg`` and the falloff, no edge caps),
-    so every run has a fovea/periphery split."""
-    view = frame.eyes[eye]
-    s = session.settings.cps
-    if s.mode == "cps" and frame.cps_caps:
-        caps = frame.cps_caps[eye]
-    else:
-        caps = (s.max_level,) * 3
-    levels = detail_map(view, view.width, view.height, frame.gaze,
-                        dict(zip(("left", "right", "bottom"), caps)), session.settings.cps)
-    return levels == 0
 
 
 def _group(records: list[dict], key: str, max_groups: int = 0) -> dict[str, dict]:

@@ -18,9 +18,8 @@ EXIT_USAGE = 2
 def _common(p: argparse.ArgumentParser, scene_required: bool = False) -> None:
     p.add_argument("--scene", default=None if scene_required else "showroom",
                    required=scene_required,
-                   help="built-in scene (showroom, showroom-100, texture-test, tcr-cube) or a "
-                        "model file "
-                        "(.gltf .glb .obj .ply)")
+                   help="built-in scene (showroom, showroom-100, showroom-gi, texture-test, "
+                        "tcr-cube, corridor) or a model file (.gltf .glb .obj .ply)")
     p.add_argument("--set", dest="assignments", action="append", default=[], metavar="KEY=VALUE",
                    help="change a setting, e.g. --set stereo.ipd_mm=60 (repeatable)")
     p.add_argument("--preset", help="settings preset saved from the window (JSON)")

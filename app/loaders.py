@@ -146,7 +146,25 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
     if spawn.floor_y is None:
         log.info("%s: no interior found, viewing it from outside", p.name)
     return replace(scene, spawn=spawn.viewpoint, floor_y=spawn.floor_y, lights=lights,
-                   warnings=notes).sanitized()
+                   warnings=notes, indirect=_gltf_wants_indirect(gltf_doc)).sanitized()
+
+
+def _gltf_wants_indirect(doc: dict[str, Any] | None) -> bool:
+    """The scene option for photon-mapped indirect light: ``"extras": {"vrpreview":
+    {"indirect": true}}`` on the glTF document or on its default scene."""
+    if not isinstance(doc, dict):
+        return False
+    holders = [doc]
+    scenes = doc.get("scenes")
+    index = doc.get("scene", 0)
+    if isinstance(scenes, list) and isinstance(index, int) and 0 <= index < len(scenes):
+        holders.append(scenes[index])
+    for holder in holders:
+        extras = holder.get("extras") if isinstance(holder, dict) else None
+        options = extras.get("vrpreview") if isinstance(extras, dict) else None
+        if isinstance(options, dict) and options.get("indirect") is True:
+            return True
+    return False
 
 
 # --------------------------------------------------------------------------------------------

@@ -39,36 +39,9 @@ class RayCaster:
     def cast_many(self, origins, directions, t_max: float = math.inf
                   ) -> tuple[np.ndarray, np.ndarray]:
         """Distances (inf on a miss) and owner ids (-1 on a miss) for each ray."""
-        o = np.asarray(origins, np.float64).reshape(-1, 3)
-        d = np.asarray(directions, np.float64).reshape(-1, 3)
-        n = o.shape[0]
-        dist = np.full(n, np.inf)
-        who = np.full(n, -1, np.int64)
-        norm = np.linalg.norm(d, axis=1)
-        valid = np.isfinite(o).all(axis=1) & np.isfinite(d).all(axis=1) & (norm > 1e-12)
-        valid &= np.abs(o).max(axis=1, initial=0.0) < 1e15
-        if not valid.any() or self.tri.shape[0] == 0:
-            return dist, who
-        idx = np.flatnonzero(valid)
-        ov, dv = o[idx], d[idx] / norm[idx, None]
-        if self._embree is not None:
-            locs, ray_i, tri_i = self._embree.intersects_location(ov, dv, multiple_hits=False)
-            if len(ray_i):
-                t = np.einsum("ij,ij->i", locs - ov[ray_i], dv[ray_i])
-                dist[idx[ray_i]] = t
-                who[idx[ray_i]] = self.owner[tri_i]
-        else:
-            v0 = self.tri[:, 0]
-            e1 = self.tri[:, 1] - v0
-            e2 = self.tri[:, 2] - v0
-            for k, i in enumerate(idx):
-                t = _intersect(ov[k], dv[k], v0, e1, e2)
-                j = int(np.argmin(t))
-                if math.isfinite(t[j]):
-                    dist[i], who[i] = t[j], self.owner[j]
-        far = dist > t_max
-        dist[far], who[far] = np.inf, -1
-        return dist, who
+        dist, tri = self.cast_triangles(origins, directions, t_max)
+        who = np.where(tri >= 0, self.owner[np.maximum(tri, 0)] if len(self.owner) else -1, -1)
+        return dist, who.astype(np.int64)
 
     def cast_triangles(self, origins, directions, t_max: float = math.inf
                        ) -> tuple[np.ndarray, np.ndarray]:

@@ -10,11 +10,15 @@ from app.paths import CameraPath, PathKey, builtin_path
 from app.scene import Scene
 
 
-def _showroom(lights: int) -> Callable[[], Scene]:
+def _showroom(lights: int, indirect: bool = False) -> Callable[[], Scene]:
     def build() -> Scene:
         from assets.showroom import build_showroom
 
-        return build_showroom(lights=lights)
+        scene = build_showroom(lights=lights)
+        if indirect:  # this variant asks for photon-mapped indirect light (photons.enabled)
+            scene.name = "showroom-gi"
+            scene.indirect = True
+        return scene
 
     return build
 
@@ -40,11 +44,13 @@ def _tcr_cube() -> Scene:
 BUILTIN: dict[str, Callable[[], Scene]] = {
     "showroom": _showroom(4),
     "showroom-100": _showroom(100),
+    "showroom-gi": _showroom(4, indirect=True),
     "texture-test": _texture_test,
     "tcr-cube": _tcr_cube,
     "corridor": _corridor,
 }
 BUILTIN_PATHS = {"showroom": "showroom_walkthrough", "showroom-100": "showroom_walkthrough",
+                 "showroom-gi": "showroom_walkthrough",
                  "tcr-cube": "tcr_cube_distance", "corridor": "corridor_walk"}
 
 

@@ -140,6 +140,9 @@ class PhotonSettings:
                        choices=("radius", "radius-half", "heap", "kdtree", "kdtree-heap",
                                 "shared"))
     k: int = _opt(32, "heap variants: nearest photons kept", lo=1, hi=64)
+    fused: bool = _opt(False, "gather inside the lighting shader (one kernel: the paper's "
+                       "'single' scheme, no stereo reuse; shared gathers as radius there) "
+                       "instead of a separate pass before it (its 'hybrid' scheme)")
     stereo_reuse: bool = _opt(True, "gather the left eye first and reuse its results at the "
                               "right-eye pixels that see the same points")
     reuse_tolerance: float = _opt(0.01, "stereo reuse: largest distance between the left hit "

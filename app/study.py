@@ -62,7 +62,7 @@ def _tcr_matrix() -> Matrix:
 
 def _photon_matrix() -> Matrix:
     """Photons emitted x gather radius (and the gather at block rate under CPS), each against
-    the converged photon map (app.bench.full_quality): the speed/accuracy curve of the
+    the converged photon map (app.quality.full_quality): the speed/accuracy curve of the
     indirect light."""
     from app.photon_bench import COUNTS, radius_m
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import moderngl
 import numpy as np
@@ -92,6 +93,8 @@ class FrameContext:
     level_maps: list[moderngl.Texture] | None = None  # CPS detail visualisation, per eye
     markers: list[list[tuple[int, int]]] | None = None  # per eye, pixels from the bottom-left
     indirect: list[moderngl.Texture] | None = None  # photon irradiance per eye (PhotonPass)
+    # photons.fused: the photon map and the gather's defines, for the lighting shader itself
+    fused_photons: tuple[Any, dict[str, object]] | None = None
     show_reuse: bool = False  # paint the right eye's reused / gathered indirect pixels
 
 
@@ -225,7 +228,11 @@ class LightingPass(RenderPass):
 
 def lighting_defines(frame: FrameContext) -> dict[str, object]:
     """The deferred.glsl variant this frame needs (tile lists, photon-map indirect light)."""
-    return {"TILED_LIGHTS": frame.culled, "INDIRECT": frame.indirect is not None}
+    defines: dict[str, object] = {"TILED_LIGHTS": frame.culled,
+                                  "INDIRECT": frame.indirect is not None}
+    if frame.fused_photons is not None:
+        defines.update(INDIRECT_FUSED=True, **frame.fused_photons[1])
+    return defines
 
 
 def deferred_inputs(prog: moderngl.Program, frame: FrameContext, eye: EyeView,
@@ -235,6 +242,8 @@ def deferred_inputs(prog: moderngl.Program, frame: FrameContext, eye: EyeView,
     if frame.indirect is not None and "u_indirect" in prog:
         frame.indirect[frame.targets.index(tgt)].use(8)
         prog["u_indirect"].value = 8
+    if frame.fused_photons is not None:
+        frame.fused_photons[0].bind(prog)  # records and starts on units 8 and 9
     tgt.albedo.use(1)
     tgt.normal.use(2)
     tgt.depth.use(3)
@@ -421,6 +430,24 @@ class OverlayPass(RenderPass):
         self._text_tex: moderngl.Texture | None = None
         self._dirty = False
         self.show_text = True
+        self._heat_tex: moderngl.Texture | None = None
+        self.show_heat = True  # off while the quality probe renders the frame it measures
+
+    def set_heat_map(self, rgba: np.ndarray | None) -> None:
+        """An (h, w, 4) uint8 error heat map over the whole view (row 0 at the top; drawn
+        stretched to the view), or None to hide it."""
+        if self._heat_tex is not None:
+            self._heat_tex.release()
+            self._heat_tex = None
+        if rgba is not None:
+            h, w = rgba.shape[:2]
+            self._heat_tex = self.ctx.texture((w, h), 4,
+                                              np.ascontiguousarray(np.flipud(rgba)).tobytes())
+            self._heat_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+
+    @property
+    def heat_map_shown(self) -> bool:
+        return self._heat_tex is not None
 
     def set_text_image(self, rgba: np.ndarray | None) -> None:
         """An (h, w, 4) uint8 image, row 0 at the top; None hides the text."""
@@ -454,6 +481,13 @@ class OverlayPass(RenderPass):
         # Colour blends; destination alpha stays 1, or Qt composites the view as translucent.
         ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ZERO,
                           moderngl.ONE)
+        if self._heat_tex is not None and self.show_heat:
+            heat = self.shaders.program("fullscreen.vert.glsl", "heatmap.frag.glsl")
+            self._heat_tex.use(0)
+            heat["u_heat"].value = 0
+            heat["u_origin"].value = (x0, y0)
+            heat["u_view_size"].value = (2 * w, h)
+            self.fullscreen(heat)
         show_text = self.show_text and self._text_tex is not None
         tw, th = self._text_tex.size if show_text else (0, 0)
         if show_text:
@@ -490,6 +524,7 @@ class OverlayPass(RenderPass):
         super().release()
         if self._text_tex is not None:
             self._text_tex.release()
+        self.set_heat_map(None)
 
 
 def _release_query(query: moderngl.Query) -> None:

@@ -98,6 +98,11 @@ class PhotonPass(RenderPass):
         if gmap is None:
             return
         s = self.settings
+        if s.fused:  # the lighting shader gathers itself (Algorithm 1 needs a compute group)
+            variant = "radius" if s.gather == "shared" else s.gather
+            frame.fused_photons = (gmap, self.gather.defines(gmap, variant, s.k))
+            self.eye_ms = [0.0, 0.0]
+            return
         size = frame.targets[0].size
         self._ensure_targets(size)
         levels = self.level_maps if self.block_rate else None
@@ -156,7 +161,8 @@ class PhotonPass(RenderPass):
     def reuse_stats(self) -> dict:
         """Right-eye pixels reused from the left eye and gathered, from the last frame (read
         back on request)."""
-        if len(self.outputs) < 2 or self.photons is None or self.gmap is None:
+        if (len(self.outputs) < 2 or self.photons is None or self.gmap is None
+                or self.settings.fused):
             return {}
         tex = self.outputs[1]
         alpha = np.frombuffer(tex.read(), np.float32).reshape(-1, 4)[:, 3]

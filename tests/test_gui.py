@@ -225,3 +225,68 @@ def test_cps_panel_drives_the_model_the_picture_and_shows_live_statistics(window
     panel.mode.setCurrentIndex(0)
     assert (s.cps.mode, s.render.lighting) == ("none", "fragment")
     assert np.abs(grab(window).astype(int) - full.astype(int)).mean() < 0.5
+
+
+def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, qtbot):
+    s, panel = window.settings, window.photon_panel
+    window.load("showroom")
+    window.wait_for_load()
+    panel.refresh_stats()
+    assert panel.labels["status"].text().startswith("off (the scene does not ask")
+    assert window.photon_cache.map is None  # nothing traced for a scene that does not ask
+    before = grab(window)
+    panel.controls.editors["photons.photons"].setValue(4096)
+    panel.controls.editors["photons.radius_m"].setValue(0.4)
+    panel.controls.editors["photons.enabled"].setCurrentText("on")
+    assert s.photons.enabled == "on" and s.photons.photons == 4096
+    qtbot.waitUntil(lambda: window.photon_cache.map is not None, timeout=20000)
+    window._check_photons()  # hand the map to the view now rather than on the next tick
+    after = grab(window)
+    assert after.astype(float).mean() > before.astype(float).mean() + 1.0  # bounced light
+    panel.refresh_stats()
+    assert panel.labels["status"].text().startswith("on (turned on)")
+    assert panel.labels["stored"].text() not in ("", "-")
+    assert "%" in panel.labels["reuse"].text()
+    assert "cells" in panel.labels["grid"].text()
+    # The reuse overlay paints the right eye green (reused) and red (gathered).
+    panel.controls.editors["photons.show_reuse"].setChecked(True)
+    painted = grab(window).astype(int)
+    right = painted[:, painted.shape[1] // 2:]
+    assert (right[..., 1] - right[..., 0]).mean() > (
+        after[:, after.shape[1] // 2:, 1].astype(int) - after[:, after.shape[1] // 2:, 0]).mean()
+    # A radius that needs too many cells: a clear message, the window keeps drawing.
+    panel.controls.editors["photons.show_reuse"].setChecked(False)
+    panel.controls.editors["photons.radius_m"].setValue(0.001)
+    grab(window)
+    panel.refresh_stats()
+    assert "cells" in panel.labels["status"].text()
+    panel.controls.editors["photons.enabled"].setCurrentText("off")
+    qtbot.waitUntil(lambda: window._photons_shown is None, timeout=5000)
+    assert np.abs(grab(window).astype(int) - before.astype(int)).mean() < 0.5
+
+
+def test_quality_panel_measures_against_full_quality_and_shows_a_heat_map(window, qtbot):
+    s = window.settings
+    window.load("showroom")
+    window.wait_for_load()
+    grab(window)
+    same = window.measure_quality()  # default settings are full quality: no error
+    assert same["frame"]["psnr"] == float("inf") and same["fovea_max_abs_diff"] == 0
+    assert window.quality_panel.cells["frame", "psnr"].text() == "identical"
+    plain = grab(window)
+    s.cps.mode = "cps"
+    window._setting_changed("cps.mode")
+    qtbot.waitUntil(lambda: len(window.session.edge) == 2, timeout=5000)
+    grab(window)
+    report = window.measure_quality()
+    assert report["fovea_max_abs_diff"] == 0  # full rate around the gaze
+    assert report["periphery"]["flip"] > report["fovea"]["flip"]
+    assert 10 < report["frame"]["psnr"] < 80
+    assert window.quality_panel.cells["periphery", "flip"].text() not in ("-", "identical")
+    assert window.quality_panel.heat.isChecked()
+    shown = grab(window).astype(int)
+    window.quality_panel.heat.setChecked(False)
+    hidden = grab(window).astype(int)
+    assert np.abs(shown - hidden).mean() > 1.0  # the heat map was drawn over the view
+    assert hidden.shape == plain.shape
+    assert not window.view.renderer.errors

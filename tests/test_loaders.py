@@ -328,6 +328,21 @@ def test_gltf_punctual_lights_replace_the_defaults(tmp_path: Path) -> None:
     assert any("directional" in w for w in scene.warnings)
 
 
+@pytest.mark.parametrize("where", ["document", "scene", "absent", "not-true"])
+def test_gltf_scene_option_asks_for_indirect_light(tmp_path: Path, where: str) -> None:
+    src = _sample("Box")
+    doc = json.loads(src.read_text())
+    shutil.copy(src.parent / "Box0.bin", tmp_path / "Box0.bin")
+    if where == "document":
+        doc["extras"] = {"vrpreview": {"indirect": True}}
+    elif where == "not-true":
+        doc["extras"] = {"vrpreview": {"indirect": "yes"}}  # only a JSON true asks
+    elif where == "scene":
+        doc["scenes"][doc.get("scene", 0)]["extras"] = {"vrpreview": {"indirect": True}}
+    (tmp_path / "gi.gltf").write_text(json.dumps(doc))
+    assert load_scene(tmp_path / "gi.gltf").indirect == (where in ("document", "scene"))
+
+
 # ------------------------------------------------------------------------------------------
 # an interior made here: the spawn takes the floor, not the table
 # ------------------------------------------------------------------------------------------

@@ -54,6 +54,7 @@ class StereoView(QOpenGLWidget):
         self.timer = FrameTimer()
         self._pending_scene: Scene | None = session.scene
         self._pending_photons: tuple | None = None  # (PhotonMap | None,) once set
+        self._probe = None  # render.quality.QualityProbe, made on the first measurement
         self._keys: set[int] = set()
         self._last_tick = time.perf_counter()
         self._drag_from: QPointF | None = None
@@ -88,6 +89,7 @@ class StereoView(QOpenGLWidget):
             return
         if self._pending_scene is not None:
             self.renderer.set_scene(self._pending_scene)
+            self.renderer.overlay.set_heat_map(None)  # measured on the scene before
             self._pending_scene = None
         if self._pending_photons is not None:
             self.renderer.set_photons(self._pending_photons[0])
@@ -127,6 +129,39 @@ class StereoView(QOpenGLWidget):
         finally:
             self.doneCurrent()
 
+    def measure_quality(self, photons) -> dict:
+        """Render the current frame at full quality and measure the live frame against it
+        (see render.quality.QualityProbe); shows the heat map over the view."""
+        if self.renderer is None or self.ctx is None or self.session.scene is None:
+            return {}
+        from render.quality import QualityProbe
+
+        self.makeCurrent()
+        try:
+            if self._probe is None:
+                self._probe = QualityProbe(self.ctx)
+            ratio = self.devicePixelRatioF()
+            w, h = max(2, int(self.width() * ratio)), max(1, int(self.height() * ratio))
+            frame = self.session.frame_input(w // 2, h)
+            fov = self.session.camera.horizontal_fov_deg(w // 2, h)
+            report = self._probe.measure(self.renderer, self.session.scene, photons, frame, fov)
+            self.renderer.overlay.set_heat_map(report["heat"])
+        finally:
+            self.doneCurrent()
+        self.update()
+        return report
+
+    def show_heat_map(self, rgba) -> None:
+        """Show (an (h, w, 4) image) or hide (None) the error heat map over the view."""
+        if self.renderer is None:
+            return
+        self.makeCurrent()
+        try:
+            self.renderer.overlay.set_heat_map(rgba)
+        finally:
+            self.doneCurrent()
+        self.update()
+
     def texture_resident_bytes(self) -> int:
         return self.renderer.texture_resident_bytes() if self.renderer is not None else 0
 
@@ -143,6 +178,9 @@ class StereoView(QOpenGLWidget):
     def release_gl(self) -> None:
         if self.renderer is not None:
             self.makeCurrent()
+            if self._probe is not None:
+                self._probe.release()
+                self._probe = None
             self.renderer.release()
             self.renderer = None
             self.doneCurrent()

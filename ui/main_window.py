@@ -44,6 +44,7 @@ from ui.cps_panel import CpsPanel
 from ui.gl_view import StereoView, default_format
 from ui.panels import EvaluationBar, SettingsPanel
 from ui.photon_panel import PhotonPanel
+from ui.quality_panel import QualityPanel
 from ui.tcr_panel import TcrPanel
 
 log = logging.getLogger(__name__)
@@ -95,6 +96,9 @@ class MainWindow(QMainWindow):
         tabs.addTab(self.tcr_panel, "TCR")
         tabs.addTab(self.cps_panel, "CPS")
         tabs.addTab(self.photon_panel, "Photons")
+        self.quality_panel = QualityPanel(
+            lambda: self.view.measure_quality(self._photons_shown), self.view.show_heat_map)
+        tabs.addTab(self.quality_panel, "Quality")
         tabs.addTab(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)
         self.dock.setObjectName("evaluation-panels")
@@ -125,6 +129,7 @@ class MainWindow(QMainWindow):
             action(built_in, name, lambda _=False, n=name: self.load(n))
         f.addSeparator()
         action(f, "Save &screenshot", self.save_screenshot, "F12")
+        action(f, "Measure &quality against full quality", self.measure_quality, "F9")
         action(f, "Save settings preset…", self.save_preset)
         action(f, "Load settings preset…", self.load_preset)
         f.addSeparator()
@@ -146,7 +151,8 @@ class MainWindow(QMainWindow):
             "Right- or middle-drag: look around\n"
             "Cursor: gaze point (both eyes)   Hold left button: gaze fixed\n"
             "Tab: evaluation / normal mode   P: play walkthrough   Ctrl+R: record path\n"
-            "F12: screenshot   Ctrl+B: save viewpoint   Ctrl+O: open a model"))
+            "F12: screenshot   Ctrl+B: save viewpoint   Ctrl+O: open a model\n"
+            "F9: measure the frame against full quality (Quality tab, heat map)"))
 
     # -- modes ---------------------------------------------------------------------------------
     def eventFilter(self, obj: QObject, event: QEvent) -> bool:
@@ -307,6 +313,17 @@ class MainWindow(QMainWindow):
             stats["edge_distances"] = [[e.distances[s] for s in ("left", "right", "bottom")]
                                        for e in edge]
         return stats
+
+    def measure_quality(self) -> dict:
+        """F9: the live frame against full quality; figures in the Quality tab, heat map over
+        the view."""
+        report = self.quality_panel.measure()
+        if report:
+            frame = report.get("frame") or {}
+            self.statusBar().showMessage(
+                f"Against full quality: FLIP {frame.get('flip', float('nan')):.3f}, "
+                f"PSNR {frame.get('psnr', float('nan')):.1f} dB (Quality tab)", 8000)
+        return report
 
     # -- photon mapping ------------------------------------------------------------------------
     def _check_photons(self) -> None:

@@ -8,6 +8,11 @@ uniform mat4 u_inv_view_projection;
 uniform vec3 u_eye;
 uniform ivec2 u_size;
 uniform vec3 u_background;
+#ifdef INDIRECT_FUSED
+// The photon gather inside the lighting (photons.fused): the core and its GRID/KDTREE/HEAP
+// defines, the map bound by GpuPhotonMap.bind.
+#include "photon_gather.glsl"
+#endif
 #ifdef INDIRECT
 // Photon-map irradiance E per pixel (photon_gather.comp.glsl); the indirect light leaving a
 // diffuse surface is its diffuse colour / pi * E, scaled by the dimmer like the lights.
@@ -28,8 +33,12 @@ vec3 light_texel(ivec2 p) {
     vec3 V = safe_normalize(u_eye - P, vec3(0.0, 0.0, 1.0));
     vec3 N = safe_normalize(normal.xyz, vec3(0.0, 1.0, 0.0));
     vec3 c = shade(P, N, V, albedo.rgb, normal.w, albedo.a);
-#ifdef INDIRECT
+#if defined(INDIRECT) || defined(INDIRECT_FUSED)
+#ifdef INDIRECT_FUSED
+    vec3 E = gather_irradiance(P, N);
+#else
     vec3 E = texelFetch(u_indirect, p, 0).rgb;
+#endif
     c = storable(c + albedo.rgb * (1.0 - albedo.a) / PI * E * u_light_scale);
 #endif
     return c;

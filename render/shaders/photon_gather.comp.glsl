@@ -63,11 +63,7 @@ void main() {
             has_query = true;
         }
     }
-#ifdef SHARED
-    vec3 E = gather_irradiance_shared(P, N, has_query);
-#else
-    vec3 E = has_query ? gather_irradiance(P, N) : vec3(0.0);
-#endif
+    vec3 E = gather_query(P, N, has_query);
     if (has_query) {
         imageStore(u_out, p, vec4(storable(E), 1.0));
 #ifdef COUNT

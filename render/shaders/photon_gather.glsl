@@ -353,3 +353,12 @@ vec3 gather_irradiance_shared(vec3 P, vec3 N, bool has_query) {
 }
 #endif  // SHARED
 
+// The estimate for one query in the variant the defines select (SHARED: from uniform control
+// flow, every invocation of the group; without a query it only helps the group load).
+vec3 gather_query(vec3 P, vec3 N, bool has_query) {
+#ifdef SHARED
+    return gather_irradiance_shared(P, N, has_query);
+#else
+    return has_query ? gather_irradiance(P, N) : vec3(0.0);
+#endif
+}

@@ -15,11 +15,7 @@ void main() {
     bool has_query = i < u_points;  // the tail of the last group still joins SHARED's barriers
     vec3 P = has_query ? pm_points[i].xyz : vec3(0.0);
     vec3 N = has_query ? pm_normals[i].xyz : vec3(0.0, 1.0, 0.0);
-#ifdef SHARED
-    vec3 E = gather_irradiance_shared(P, N, has_query);
-#else
-    vec3 E = has_query ? gather_irradiance(P, N) : vec3(0.0);
-#endif
+    vec3 E = gather_query(P, N, has_query);
     if (has_query) {
         pm_out[i] = vec4(E, 0.0);
 #ifdef COUNT

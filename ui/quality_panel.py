@@ -1,0 +1,89 @@
+"""Quality panel: the live frame against full quality, on a key (F9).
+
+Full quality is :func:`app.quality.full_quality` (finest textures, full-rate lighting, no
+mask, photons gathered per eye): the same reference the benchmark and the study use. The
+figures are PSNR, SSIM and FLIP on display values for the frame, the fovea (around the gaze)
+and the periphery; the FLIP error map is shown over the view as a heat map.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from PyQt6.QtWidgets import (
+    QCheckBox,
+    QGridLayout,
+    QGroupBox,
+    QLabel,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+REGIONS = ("frame", "fovea", "periphery")
+METRICS = (("psnr", "PSNR dB"), ("ssim", "SSIM"), ("flip", "FLIP"))
+
+
+class QualityPanel(QWidget):
+    def __init__(self, measure: Callable[[], dict], show_heat: Callable[[object], None],
+                 parent=None) -> None:
+        super().__init__(parent)
+        self._measure = measure
+        self._show_heat = show_heat
+        self.report: dict = {}
+        layout = QVBoxLayout(self)
+        self.button = QPushButton("Measure this frame against full quality (F9)")
+        self.button.clicked.connect(self.measure)
+        layout.addWidget(self.button)
+        box = QGroupBox("Error against full quality (display values)")
+        grid = QGridLayout(box)
+        for col, (_key, title) in enumerate(METRICS, start=1):
+            grid.addWidget(QLabel(title), 0, col)
+        self.cells: dict[tuple[str, str], QLabel] = {}
+        for row, region in enumerate(REGIONS, start=1):
+            grid.addWidget(QLabel(region), row, 0)
+            for col, (key, _title) in enumerate(METRICS, start=1):
+                self.cells[region, key] = QLabel("-")
+                grid.addWidget(self.cells[region, key], row, col)
+        self.fovea_diff = QLabel("-")
+        grid.addWidget(QLabel("fovea, largest difference"), len(REGIONS) + 1, 0, 1, 2)
+        grid.addWidget(self.fovea_diff, len(REGIONS) + 1, 2, 1, 2)
+        layout.addWidget(box)
+        self.heat = QCheckBox("Show the FLIP heat map over the view (dark: no error; "
+                              "purple, orange, pale yellow: FLIP 0.25 and above)")
+        self.heat.setEnabled(False)
+        self.heat.toggled.connect(self._toggle_heat)
+        layout.addWidget(self.heat)
+        note = QLabel("Full quality: finest texture levels, full-rate lighting without a mask, "
+                      "the photon map gathered for each eye. The heat map is a snapshot of "
+                      "the measured frame; measure again after moving.")
+        note.setWordWrap(True)
+        layout.addWidget(note)
+        layout.addStretch(1)
+
+    def measure(self) -> dict:
+        self.report = self._measure() or {}
+        for region in REGIONS:
+            r = self.report.get(region) or {}
+            for key, _title in METRICS:
+                self.cells[region, key].setText(_format(key, r.get(key)))
+        diff = self.report.get("fovea_max_abs_diff")
+        self.fovea_diff.setText("-" if diff is None else f"{diff} of 255")
+        has_heat = self.report.get("heat") is not None
+        self.heat.setEnabled(has_heat)
+        self.heat.blockSignals(True)
+        self.heat.setChecked(has_heat)
+        self.heat.blockSignals(False)
+        return self.report
+
+    def _toggle_heat(self, on: bool) -> None:
+        self._show_heat(self.report.get("heat") if on else None)
+
+
+def _format(key: str, value: object) -> str:
+    if not isinstance(value, (int, float)) or math.isnan(value):
+        return "-"
+    if math.isinf(value):
+        return "identical"
+    return f"{value:.1f}" if key == "psnr" else f"{value:.4f}"
