@@ -37,17 +37,34 @@ void main() {
         vec2 lo = vec2(tile * LIGHT_TILE);
         vec2 hi = vec2(min(tile * LIGHT_TILE + LIGHT_TILE, u_size));
         vec3 bmin = vec3(1e30), bmax = vec3(-1e30);
+        vec3 near_corner[4];
         for (int i = 0; i < 8; ++i) {
             vec2 corner = vec2((i & 1) != 0 ? hi.x : lo.x, (i & 2) != 0 ? hi.y : lo.y);
             vec3 v = view_point(corner, (i & 4) != 0 ? range.y : range.x);
             bmin = min(bmin, v);
             bmax = max(bmax, v);
+            if ((i & 4) == 0) near_corner[i] = v;
+        }
+        // The tile's four side planes through the eye (the box alone is loose where a tile
+        // spans a long depth range); each normal is turned to face the tile's centre.
+        vec3 centre = view_point(0.5 * (lo + hi), 0.5 * (range.x + range.y));
+        vec4 planes[4];
+        const ivec2 EDGES[4] = ivec2[4](ivec2(0, 2), ivec2(1, 3), ivec2(0, 1), ivec2(2, 3));
+        for (int e = 0; e < 4; ++e) {
+            vec3 n = cross(near_corner[EDGES[e].x], near_corner[EDGES[e].y]);
+            float len = length(n);
+            n = len > 1e-20 ? n / len : vec3(0.0);
+            planes[e] = vec4(dot(n, centre) < 0.0 ? -n : n, 0.0);
         }
         for (int i = 0; i < u_light_count; ++i) {
             vec4 pr = light_position_range[i];
             vec3 c = (u_view * vec4(pr.xyz, 1.0)).xyz;
             vec3 d = c - clamp(c, bmin, bmax);
-            if (dot(d, d) < pr.w * pr.w) {
+            bool reaches = dot(d, d) < pr.w * pr.w;
+            for (int e = 0; e < 4 && reaches; ++e) {
+                reaches = dot(planes[e].xyz, c) > -pr.w;
+            }
+            if (reaches) {
                 if (n < uint(MAX_PER_TILE)) {
                     imageStore(u_lists, ivec2(tile.x * MAX_PER_TILE + int(n), tile.y), uvec4(i));
                 }
