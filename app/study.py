@@ -183,8 +183,10 @@ def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) 
     return (f"# Study `{which}`: {matrix.scene}, path {matrix.path}\n\n"
             f"One frame in {matrix.stride} of the path, one in {matrix.compare_every} of those "
             "compared with the same frame at full quality (finest textures, full-rate "
-            "lighting); errors on display values. Fovea: pixels CPS keeps at full rate; "
-            "periphery: the rest. `*`: on the Pareto front of frame time against FLIP.\n\n"
+            "lighting, no mask; indirect light from a converged photon map: 4M paths at "
+            "r = 10 cm, each eye gathered); errors on display values. Fovea: pixels CPS keeps "
+            "at full rate (without CPS: the same angle around the gaze); periphery: the rest. "
+            "`*`: on the Pareto front of frame time against FLIP.\n\n"
             + markdown(header, table) + "\n\nPareto front (fastest first): "
             + ", ".join(front) + "\n")
 
