@@ -13,6 +13,7 @@ only where no left point landed.
 
 from __future__ import annotations
 
+import logging
 import time
 
 import moderngl
@@ -25,6 +26,7 @@ from render.passes import FrameContext, RenderPass
 from render.photon_gather import GpuPhotonMap, PhotonGather
 from render.shaders import ShaderLibrary
 
+log = logging.getLogger(__name__)
 NO_WINNER = 0xFFFFFFFF
 STRUCTURE = {"radius": "grid", "heap": "grid", "shared": "grid", "radius-half": "grid-half",
              "kdtree": "kdtree", "kdtree-heap": "kdtree"}
@@ -71,6 +73,7 @@ class PhotonPass(RenderPass):
                 self.gmap = GpuPhotonMap(self.ctx, self.photons, s.radius_m, STRUCTURE[s.gather])
             except ValueError as exc:  # GridTooLarge: a clear message, no indirect light
                 self.error = str(exc)
+                log.warning("no indirect light: %s", exc)
         return self.gmap
 
     @property
