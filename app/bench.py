@@ -19,7 +19,7 @@ from app import metrics, scenes
 from app.fileio import atomic_write_json, atomic_write_png
 from app.overlay_text import text_image
 from app.paths import FIXED_DT, CameraPath
-from app.quality import full_quality, stereo_fovea
+from app.quality import full_quality, measure, stereo_fovea
 from app.session import Session
 from app.settings import Settings
 from app.stats import overlay_lines, summarize
@@ -148,26 +148,21 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
             if reference is not None and i % compare_every == 0:
                 test_img = host.read_pixels()  # the timed frame itself
                 ref_img = reference.draw(frame)
-                whole = metrics.compare(ref_img, test_img, ppd)
-                record["error"] = whole
-                errors_whole.append({**whole, "state": session.state})
-                if frame.eyes[0].width > 0:
-                    fovea = stereo_fovea(settings.cps, frame)
-                    for region, mask in (("fovea", fovea), ("periphery", ~fovea)):
-                        if mask.any():
-                            err = metrics.compare(ref_img, test_img, ppd, mask)
-                            record[f"error_{region}"] = err
-                            errors_regions.setdefault(region, []).append(err)
-                    if fovea.any():
-                        diff = np.abs(ref_img.astype(int) - test_img.astype(int))[fovea]
-                        fovea_max.append(int(diff.max()))
-                if gazed is not None:
-                    ids = reference.object_ids(frame)
-                    mask = np.hstack(ids) == gazed
-                    if mask.any():
-                        g = metrics.compare(ref_img, test_img, ppd, mask)
-                        record["error_gazed"] = g
-                        errors_gazed.append({**g, "state": session.state})
+                regions = ({"gazed": np.hstack(reference.object_ids(frame)) == gazed}
+                           if gazed is not None else {})
+                err = measure(ref_img, test_img, stereo_fovea(settings.cps, frame), ppd,
+                              regions)
+                record["error"] = err["frame"]
+                errors_whole.append({**err["frame"], "state": session.state})
+                for region in ("fovea", "periphery"):
+                    if err[region]:
+                        record[f"error_{region}"] = err[region]
+                        errors_regions.setdefault(region, []).append(err[region])
+                if err["fovea_max_abs_diff"] is not None:
+                    fovea_max.append(err["fovea_max_abs_diff"])
+                if err.get("gazed"):
+                    record["error_gazed"] = err["gazed"]
+                    errors_gazed.append({**err["gazed"], "state": session.state})
             per_frame.append(record)
             if progress:
                 progress(i + 1, total)

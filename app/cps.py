@@ -320,7 +320,7 @@ def shaded_samples(level_map: np.ndarray) -> int:
 
 
 def _levels_and_grid(colours: np.ndarray, levels: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validated (H, W) block sizes L and full (H, W) x and y pixel index grids."""
     if levels.shape != colours.shape[:2]:
         raise ValueError(f"level map {levels.shape} does not match the image {colours.shape}")
@@ -328,7 +328,7 @@ def _levels_and_grid(colours: np.ndarray, levels: np.ndarray
     s = np.clip(levels.astype(np.int64), 0, MAX_LEVEL)
     size = np.left_shift(np.int64(1), s)
     y, x = np.indices((h, w), dtype=np.int64)
-    return size, x, y, s
+    return size, x, y
 
 
 def _per_pixel(weight: np.ndarray, ndim: int) -> np.ndarray:
@@ -368,7 +368,7 @@ def hierarchical_filter(C: ArrayLike, S: ArrayLike) -> np.ndarray:
     levels = np.asarray(S)
     if colours.size == 0:
         return colours.copy()
-    size, x, y, _s = _levels_and_grid(colours, levels)
+    size, x, y = _levels_and_grid(colours, levels)
     h, w = levels.shape
     ox, oy = x - x % size, y - y % size
     lx = (x + 0.5 - ox) / size - 0.5
@@ -408,7 +408,7 @@ def bilinear_filter(C: ArrayLike, S: ArrayLike) -> np.ndarray:
     levels = np.asarray(S)
     if colours.size == 0:
         return colours.copy()
-    size, x, y, _s = _levels_and_grid(colours, levels)
+    size, x, y = _levels_and_grid(colours, levels)
     h, w = levels.shape
     fx = (x + 0.5) / size - 0.5
     fy = (y + 0.5) / size - 0.5
@@ -436,7 +436,7 @@ def block_image(image: ArrayLike, S: ArrayLike) -> np.ndarray:
     levels = np.asarray(S)
     if img.size == 0:
         return img.copy()
-    size, x, y, _s = _levels_and_grid(img, levels)
+    size, x, y = _levels_and_grid(img, levels)
     h, w = levels.shape
     cx = np.clip(x - x % size + size // 2, 0, w - 1)
     cy = np.clip(y - y % size + size // 2, 0, h - 1)

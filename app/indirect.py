@@ -48,9 +48,6 @@ class PhotonCache:
             return None
         return self.map if self.key == map_key(settings, scene) else None
 
-    def stale(self, settings: PhotonSettings, scene: Scene | None) -> bool:
-        return wanted(settings, scene) and self.key != map_key(settings, scene)
-
     def ensure(self, settings: PhotonSettings, scene: Scene | None,
                progress: Callable[[float], None] | None = None,
                cancel: Callable[[], bool] | None = None) -> PhotonMap | None:

@@ -91,9 +91,21 @@ def flip(reference: np.ndarray, test: np.ndarray, ppd: float,
 def compare(reference: np.ndarray, test: np.ndarray, ppd: float,
             mask: np.ndarray | None = None) -> dict[str, float]:
     """PSNR, SSIM and FLIP of ``test`` against ``reference``, optionally inside ``mask``."""
-    m = _select(mask, np.shape(reference))
-    out = {"psnr": psnr(reference, test, m), "ssim": ssim(reference, test, m)}
-    fm = flip_map(reference, test, ppd)
-    out["flip"] = float(fm[m].mean()) if fm is not None and m.any() else math.nan
-    out["pixels"] = int(m.sum())
+    return compare_regions(reference, test, ppd, {"": mask})[""]
+
+
+def compare_regions(reference: np.ndarray, test: np.ndarray, ppd: float,
+                    masks: dict[str, np.ndarray | None], flip_error: np.ndarray | None = None
+                    ) -> dict[str, dict[str, float]]:
+    """:func:`compare` for several regions (None: the whole image) of one pair of images,
+    computing the SSIM and FLIP maps once (``flip_error``: a FLIP map already computed)."""
+    fm = flip_error if flip_error is not None else flip_map(reference, test, ppd)
+    sm = ssim_map(reference, test)
+    out = {}
+    for name, mask in masks.items():
+        m = _select(mask, np.shape(reference))
+        out[name] = {"psnr": psnr(reference, test, m),
+                     "ssim": float(sm[m].mean()) if m.any() else math.nan,
+                     "flip": float(fm[m].mean()) if fm is not None and m.any() else math.nan,
+                     "pixels": int(m.sum())}
     return out

@@ -63,17 +63,23 @@ def stereo_fovea(cps: CpsSettings, frame: FrameInput) -> np.ndarray:
     return np.hstack([np.flipud(fovea_mask(cps, frame, e)) for e in range(2)])
 
 
-def measure(reference: np.ndarray, test: np.ndarray, fovea: np.ndarray, ppd: float) -> dict:
-    """PSNR, SSIM and FLIP for the frame, the fovea and the periphery, the largest foveal
-    difference, and the FLIP error map (None without flip-evaluator)."""
-    out: dict = {"frame": metrics.compare(reference, test, ppd)}
-    for region, mask in (("fovea", fovea), ("periphery", ~fovea)):
-        out[region] = metrics.compare(reference, test, ppd, mask) if mask.any() else {}
+def measure(reference: np.ndarray, test: np.ndarray, fovea: np.ndarray | None, ppd: float,
+            regions: dict[str, np.ndarray] | None = None) -> dict:
+    """PSNR, SSIM and FLIP for the frame, the fovea and the periphery (``{}`` for an empty
+    one; absent without a ``fovea``) and any further ``regions``; the largest foveal
+    difference, and the per-pixel error map (FLIP; without flip-evaluator the largest channel
+    difference)."""
+    masks: dict[str, np.ndarray | None] = {"frame": None}
+    if fovea is not None:
+        masks.update(fovea=fovea, periphery=~fovea)
+    masks.update(regions or {})
+    flip_error = metrics.flip_map(reference, test, ppd)
+    out: dict = {name: r if r["pixels"] else {} for name, r in metrics.compare_regions(
+        reference, test, ppd, masks, flip_error).items()}
     diff = np.abs(reference.astype(int) - test.astype(int))
-    out["fovea_max_abs_diff"] = int(diff[fovea].max()) if fovea.any() else None
-    out["flip_map"] = metrics.flip_map(reference, test, ppd)
-    if out["flip_map"] is None:  # without FLIP: the largest channel difference
-        out["flip_map"] = diff.max(axis=2) / 255.0
+    out["fovea_max_abs_diff"] = (int(diff[fovea].max()) if fovea is not None and fovea.any()
+                                 else None)
+    out["flip_map"] = flip_error if flip_error is not None else diff.max(axis=2) / 255.0
     return out
 
 

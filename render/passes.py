@@ -445,10 +445,6 @@ class OverlayPass(RenderPass):
                                               np.ascontiguousarray(np.flipud(rgba)).tobytes())
             self._heat_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
-    @property
-    def heat_map_shown(self) -> bool:
-        return self._heat_tex is not None
-
     def set_text_image(self, rgba: np.ndarray | None) -> None:
         """An (h, w, 4) uint8 image, row 0 at the top; None hides the text."""
         self.text_rgba = rgba

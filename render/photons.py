@@ -23,13 +23,10 @@ from app.camera import gl_bytes
 from app.photon_map import PhotonMap
 from app.settings import PhotonSettings
 from render.passes import FrameContext, RenderPass
-from render.photon_gather import GpuPhotonMap, PhotonGather
+from render.photon_gather import NO_WINNER, STRUCTURE_OF, GpuPhotonMap, PhotonGather
 from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
-NO_WINNER = 0xFFFFFFFF
-STRUCTURE = {"radius": "grid", "heap": "grid", "shared": "grid", "radius-half": "grid-half",
-             "kdtree": "kdtree", "kdtree-heap": "kdtree"}
 
 
 class PhotonPass(RenderPass):
@@ -64,13 +61,14 @@ class PhotonPass(RenderPass):
 
     def _ensure_map(self) -> GpuPhotonMap | None:
         s = self.settings
-        key = (id(self.photons), s.radius_m, STRUCTURE[s.gather])
+        structure = STRUCTURE_OF[s.gather]
+        key = (id(self.photons), s.radius_m, structure)
         if key != self._gmap_key:
             self._drop_map()
             self._gmap_key = key
             self.error = None
             try:
-                self.gmap = GpuPhotonMap(self.ctx, self.photons, s.radius_m, STRUCTURE[s.gather])
+                self.gmap = GpuPhotonMap(self.ctx, self.photons, s.radius_m, structure)
             except ValueError as exc:  # GridTooLarge: a clear message, no indirect light
                 self.error = str(exc)
                 log.warning("no indirect light: %s", exc)

@@ -32,7 +32,7 @@ from PyQt6.QtWidgets import (
 
 from app import scenes
 from app.fileio import atomic_write_bytes, atomic_write_json
-from app.indirect import PhotonCache, map_key, wanted
+from app.indirect import PhotonCache, map_key, trace, wanted
 from app.loaders import SUPPORTED_EXTENSIONS, SceneLoadError
 from app.paths import CameraPath
 from app.photons import TracingCancelled
@@ -358,8 +358,6 @@ class MainWindow(QMainWindow):
             key = map_key(s, scene)
             if key == self._trace_failed:
                 return
-            from app.indirect import trace
-
             cancel = [False]
             self._trace_progress = 0.0
             self._trace_started = time.monotonic()

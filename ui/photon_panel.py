@@ -44,7 +44,7 @@ class PhotonPanel(QWidget):
             form.addRow(title, self.labels[key])
         layout.addWidget(box)
         self.timer = QTimer(self)
-        self.timer.timeout.connect(self.refresh_stats)
+        self.timer.timeout.connect(self._tick)
         self.timer.start(250)
 
     @property
@@ -53,6 +53,11 @@ class PhotonPanel(QWidget):
 
     def refresh(self) -> None:
         self.controls.refresh()
+
+    def _tick(self) -> None:
+        # Only while the tab shows: the reuse share reads the right eye's target back.
+        if self.isVisible():
+            self.refresh_stats()
 
     def refresh_stats(self) -> None:
         info = self.stats()
