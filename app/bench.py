@@ -40,8 +40,9 @@ def parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
-def _open(scene_name: str, size: tuple[int, int], settings: Settings,
-          path: CameraPath | None = None):
+def _open(
+    scene_name: str, size: tuple[int, int], settings: Settings, path: CameraPath | None = None
+):
     from render.offscreen import OffscreenHost  # GL only when a run really renders
 
     scene = scenes.resolve(scene_name)
@@ -61,12 +62,22 @@ def print_trace_progress(fraction: float) -> None:
     _last_fraction = fraction
     filled = int(round(30 * min(max(fraction, 0.0), 1.0)))
     end = "\n" if fraction >= 1.0 else ""
-    print(f"\rtracing photons [{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:3.0f}%",
-          end=end, file=sys.stderr, flush=True)
+    print(
+        f"\rtracing photons [{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:3.0f}%",
+        end=end,
+        file=sys.stderr,
+        flush=True,
+    )
 
 
-def render_frame(scene_name: str, out: str | Path, size: tuple[int, int], frame: int,
-                 settings: Settings, path: CameraPath | None = None) -> np.ndarray:
+def render_frame(
+    scene_name: str,
+    out: str | Path,
+    size: tuple[int, int],
+    frame: int,
+    settings: Settings,
+    path: CameraPath | None = None,
+) -> np.ndarray:
     """Render frame ``frame`` of the scene's path and save it as a PNG (both eyes)."""
     _scene, session, host = _open(scene_name, size, settings, path)
     try:
@@ -79,9 +90,17 @@ def render_frame(scene_name: str, out: str | Path, size: tuple[int, int], frame:
     return img
 
 
-def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Settings,
-          warmup: int = 5, path: CameraPath | None = None,
-          progress: Progress | None = None, compare_every: int = 0, stride: int = 1) -> dict:
+def bench(
+    scene_name: str,
+    size: tuple[int, int],
+    frames: int,
+    settings: Settings,
+    warmup: int = 5,
+    path: CameraPath | None = None,
+    progress: Progress | None = None,
+    compare_every: int = 0,
+    stride: int = 1,
+) -> dict:
     """Replay the path; per-frame wall time and per-pass GPU time. frames=0: the whole path.
 
     ``stride`` K > 1 times every K-th frame of the path only (the session still steps through
@@ -106,7 +125,8 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
         reference.set_scene(scene)
         reference.set_text_image(None)
     ppd = metrics.pixels_per_degree(
-        size[0] // 2, session.camera.horizontal_fov_deg(size[0] // 2, size[1]))
+        size[0] // 2, session.camera.horizontal_fov_deg(size[0] // 2, size[1])
+    )
     frame_ms: list[float] = []
     pass_ms: dict[str, list[float]] = {}
     samples: list[int] = []
@@ -136,22 +156,36 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
                     photon_frames.append(host.renderer.photon_stats())
             resident.append(host.renderer.texture_resident_bytes())
             gazed = session.gazed
-            distance = (float(session.tcr.distances[gazed]) if gazed is not None
-                        and session.tcr is not None and len(session.tcr.distances) > gazed
-                        else None)
-            record = {"path_frame": max(i, 0) * stride % session.path.frame_count(),
-                      "gazed_distance_m": None if distance is None else round(distance, 2),
-                      "frame": i, "ms": dt, "state": session.state, "gazed":
-                      session.gazed_object(), "gazed_level": (session.levels[gazed] if (
-                          settings.tcr.enabled and session.levels and gazed is not None)
-                          else 0), "resident_bytes": resident[-1]}
+            distance = (
+                float(session.tcr.distances[gazed])
+                if gazed is not None
+                and session.tcr is not None
+                and len(session.tcr.distances) > gazed
+                else None
+            )
+            record = {
+                "path_frame": max(i, 0) * stride % session.path.frame_count(),
+                "gazed_distance_m": None if distance is None else round(distance, 2),
+                "frame": i,
+                "ms": dt,
+                "state": session.state,
+                "gazed": session.gazed_object(),
+                "gazed_level": (
+                    session.levels[gazed]
+                    if (settings.tcr.enabled and session.levels and gazed is not None)
+                    else 0
+                ),
+                "resident_bytes": resident[-1],
+            }
             if reference is not None and i % compare_every == 0:
                 test_img = host.read_pixels()  # the timed frame itself
                 ref_img = reference.draw(frame)
-                regions = ({"gazed": np.hstack(reference.object_ids(frame)) == gazed}
-                           if gazed is not None else {})
-                err = measure(ref_img, test_img, stereo_fovea(settings.cps, frame), ppd,
-                              regions)
+                regions = (
+                    {"gazed": np.hstack(reference.object_ids(frame)) == gazed}
+                    if gazed is not None
+                    else {}
+                )
+                err = measure(ref_img, test_img, stereo_fovea(settings.cps, frame), ppd, regions)
                 record["error"] = err["frame"]
                 errors_whole.append({**err["frame"], "state": session.state})
                 for region in ("fovea", "periphery"):
@@ -175,8 +209,13 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
             reference.close()
     ft = summarize(frame_ms)
     result = {
-        "scene": {"name": scene.name, "source": scene.source, "triangles": scene.triangle_count,
-                  "lights": len(scene.lights), "textures": len(scene.textures)},
+        "scene": {
+            "name": scene.name,
+            "source": scene.source,
+            "triangles": scene.triangle_count,
+            "lights": len(scene.lights),
+            "textures": len(scene.textures),
+        },
         "path": session.path.scene or scene.name,
         "size": {"width": size[0], "height": size[1], "eye": [size[0] // 2, size[1]]},
         "device": device,
@@ -186,15 +225,20 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
         "time_step_s": FIXED_DT,
         "fps_median": 1000.0 / ft["median"] if ft["median"] > 0 else 0.0,
         "frame_ms": ft,
-        "passes": {k: {"median_ms": summarize(v)["median"], "p95_ms": summarize(v)["p95"]}
-                   for k, v in pass_ms.items()},
+        "passes": {
+            k: {"median_ms": summarize(v)["median"], "p95_ms": summarize(v)["p95"]}
+            for k, v in pass_ms.items()
+        },
         "texture_resident_bytes": int(np.median(resident)) if resident else 0,
         "texture_resident_bytes_max": max(resident, default=0),
         "shaded_samples": int(np.median(samples)) if samples else 0,
         "by_state": _group(per_frame, "state"),
         "by_gazed_level": _group(per_frame, "gazed_level"),
-        "by_gazed_distance_m": _group([r for r in per_frame if r["gazed_distance_m"] is not None],
-                                      "gazed_distance_m", max_groups=40),
+        "by_gazed_distance_m": _group(
+            [r for r in per_frame if r["gazed_distance_m"] is not None],
+            "gazed_distance_m",
+            max_groups=40,
+        ),
         "settings": settings.to_dict(),
         "photons": _photon_summary(photon_frames, trace_ms),
         "errors": errors,
@@ -203,17 +247,20 @@ def bench(scene_name: str, size: tuple[int, int], frames: int, settings: Setting
     if reference is not None:
         result["error_vs_full_quality"] = {
             "reference": "same frame at full quality (TCR off, full-rate lighting, no mask, "
-                         "converged photon map), display values; fovea/periphery: pixels at "
-                         "CPS level 0 / above 0 (without CPS: by angle from the gaze alone)",
+            "converged photon map), display values; fovea/periphery: pixels at "
+            "CPS level 0 / above 0 (without CPS: by angle from the gaze alone)",
             "pixels_per_degree": ppd,
-            "frame": _mean_errors(errors_whole), "gazed_object": _mean_errors(errors_gazed),
+            "frame": _mean_errors(errors_whole),
+            "gazed_object": _mean_errors(errors_gazed),
             **{region: _mean_errors(rows) for region, rows in errors_regions.items()},
             "fovea_max_abs_diff": max(fovea_max) if fovea_max else None,
-            "by_state": {str(s): {"frame": _mean_errors([e for e in errors_whole
-                                                         if e["state"] == s]),
-                                  "gazed_object": _mean_errors([e for e in errors_gazed
-                                                                if e["state"] == s])}
-                         for s in sorted({e["state"] for e in errors_whole})},
+            "by_state": {
+                str(s): {
+                    "frame": _mean_errors([e for e in errors_whole if e["state"] == s]),
+                    "gazed_object": _mean_errors([e for e in errors_gazed if e["state"] == s]),
+                }
+                for s in sorted({e["state"] for e in errors_whole})
+            },
         }
     return result
 
@@ -224,15 +271,20 @@ def _photon_summary(frames: list[dict], trace_ms: float) -> dict | None:
         return None
     eye_ms = np.array([f.get("eye_ms", [0.0, 0.0]) for f in frames], float)
     shares = [f["reuse_share"] for f in frames if "reuse_share" in f]
-    return {"stored": frames[0].get("photons", 0), "trace_ms": trace_ms,
-            "grid": frames[0].get("grid"), "error": frames[0].get("error"),
-            # Wall-clock per eye where measured: moderngl's timer query is 32-bit (wraps at
-            # 4.29 s, which a 512^2 photon gather on llvmpipe can pass).
-            "gather_ms": float(np.median(eye_ms.sum(axis=1))) if eye_ms.any() else
-            float(np.median([f.get("gather_ms", 0.0) for f in frames])),
-            "left_eye_ms": float(np.median(eye_ms[:, 0])),
-            "right_eye_ms": float(np.median(eye_ms[:, 1])),
-            "reuse_share": float(np.median(shares)) if shares else None}
+    return {
+        "stored": frames[0].get("photons", 0),
+        "trace_ms": trace_ms,
+        "grid": frames[0].get("grid"),
+        "error": frames[0].get("error"),
+        # Wall-clock per eye where measured: moderngl's timer query is 32-bit (wraps at
+        # 4.29 s, which a 512^2 photon gather on llvmpipe can pass).
+        "gather_ms": float(np.median(eye_ms.sum(axis=1)))
+        if eye_ms.any()
+        else float(np.median([f.get("gather_ms", 0.0) for f in frames])),
+        "left_eye_ms": float(np.median(eye_ms[:, 0])),
+        "right_eye_ms": float(np.median(eye_ms[:, 1])),
+        "reuse_share": float(np.median(shares)) if shares else None,
+    }
 
 
 _converged: dict[tuple, tuple] = {}  # (scene, count, seed, bounces) -> (scene, PhotonMap)
@@ -263,8 +315,11 @@ def _group(records: list[dict], key: str, max_groups: int = 0) -> dict[str, dict
     for value in sorted(values, key=lambda v: (isinstance(v, str), v)):
         ms = [r["ms"] for r in records if r[key] == value]
         med = summarize(ms)["median"]
-        out[str(value)] = {"frames": len(ms), "frame_ms_median": med,
-                           "fps_median": 1000.0 / med if med > 0 else 0.0}
+        out[str(value)] = {
+            "frames": len(ms),
+            "frame_ms_median": med,
+            "fps_median": 1000.0 / med if med > 0 else 0.0,
+        }
     return out
 
 
@@ -273,14 +328,23 @@ def _mean_errors(rows: list[dict]) -> dict:
     if not rows:
         return {"frames": 0}
     finite = [r["psnr"] for r in rows if math.isfinite(r["psnr"])]
-    return {"frames": len(rows), "identical_frames": len(rows) - len(finite),
-            "psnr_db": float(np.mean(finite)) if finite else math.inf,
-            "ssim": float(np.mean([r["ssim"] for r in rows])),
-            "flip": float(np.nanmean([r["flip"] for r in rows]))}
+    return {
+        "frames": len(rows),
+        "identical_frames": len(rows) - len(finite),
+        "psnr_db": float(np.mean(finite)) if finite else math.inf,
+        "ssim": float(np.mean([r["ssim"] for r in rows])),
+        "flip": float(np.nanmean([r["flip"] for r in rows])),
+    }
 
 
-def demo(scene_name: str, out_dir: str | Path, size: tuple[int, int], settings: Settings,
-         every_s: float = 1.0, progress: Progress | None = None) -> dict:
+def demo(
+    scene_name: str,
+    out_dir: str | Path,
+    size: tuple[int, int],
+    settings: Settings,
+    every_s: float = 1.0,
+    progress: Progress | None = None,
+) -> dict:
     """The no-display fallback: walk the default path, save stereo screenshots and a summary."""
     out_dir = Path(out_dir)
     scene, session, host = _open(scene_name, size, settings)
@@ -295,8 +359,11 @@ def demo(scene_name: str, out_dir: str | Path, size: tuple[int, int], settings: 
             session.apply_path_frame(i)
             frame = session.frame_input(*host.eye_size)
             if i % every == 0 or i == total - 1:
-                host.set_text_image(text_image(overlay_lines(
-                    fps, host.renderer.pass_ms(), settings, frame.gaze_fixed)))
+                host.set_text_image(
+                    text_image(
+                        overlay_lines(fps, host.renderer.pass_ms(), settings, frame.gaze_fixed)
+                    )
+                )
                 img = host.draw(frame)
                 name = f"frame_{i:04d}.png"
                 atomic_write_png(out_dir / name, img)
@@ -311,8 +378,13 @@ def demo(scene_name: str, out_dir: str | Path, size: tuple[int, int], settings: 
     finally:
         host.close()
     ft = summarize(frame_ms)
-    summary = {"scene": scene.name, "frames": total, "screenshots": shots,
-               "fps_median": 1000.0 / ft["median"] if ft["median"] else 0.0, "frame_ms": ft,
-               "settings": settings.to_dict()}
+    summary = {
+        "scene": scene.name,
+        "frames": total,
+        "screenshots": shots,
+        "fps_median": 1000.0 / ft["median"] if ft["median"] else 0.0,
+        "frame_ms": ft,
+        "settings": settings.to_dict(),
+    }
     atomic_write_json(out_dir / "summary.json", summary)
     return summary

@@ -33,8 +33,9 @@ def orientation(yaw_deg: float, pitch_deg: float) -> tuple[np.ndarray, np.ndarra
     """(right, up, forward) unit vectors. Yaw 0 looks down -Z; positive yaw turns left."""
     yaw = math.radians(_finite(yaw_deg, 0.0) % 360.0)
     pitch = math.radians(max(-89.9, min(89.9, _finite(pitch_deg, 0.0))))
-    fwd = np.array([-math.sin(yaw) * math.cos(pitch), math.sin(pitch),
-                    -math.cos(yaw) * math.cos(pitch)])
+    fwd = np.array(
+        [-math.sin(yaw) * math.cos(pitch), math.sin(pitch), -math.cos(yaw) * math.cos(pitch)]
+    )
     right = np.array([math.cos(yaw), 0.0, -math.sin(yaw)])
     up = np.cross(right, fwd)
     return right, up, fwd
@@ -47,8 +48,9 @@ def look_matrix(eye: np.ndarray, right: np.ndarray, up: np.ndarray, fwd: np.ndar
     return m
 
 
-def frustum(left: float, right: float, bottom: float, top: float, near: float,
-            far: float) -> np.ndarray:
+def frustum(
+    left: float, right: float, bottom: float, top: float, near: float, far: float
+) -> np.ndarray:
     m = np.zeros((4, 4))
     m[0, 0] = 2 * near / (right - left)
     m[0, 2] = (right + left) / (right - left)
@@ -131,12 +133,16 @@ class StereoCamera:
             eye = self.position + side * half_ipd * right
             shift = -side * half_ipd * near / conv  # frustum moves towards the other eye
             proj = frustum(-half_w + shift, half_w + shift, -top, top, near, far)
-            views.append(EyeView(index, eye, look_matrix(eye, right, up, fwd), proj, width,
-                                 height, near, far))
+            views.append(
+                EyeView(
+                    index, eye, look_matrix(eye, right, up, fwd), proj, width, height, near, far
+                )
+            )
         return views
 
-    def gaze_ray(self, u: float, v: float, width: int, height: int
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def gaze_ray(
+        self, u: float, v: float, width: int, height: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The cyclopean gaze ray (origin between the eyes, unit direction) for the point (u, v)
         that the gaze marks in both eye viewports.
 
@@ -151,8 +157,16 @@ class StereoCamera:
         top = near * math.tan(fov / 2)
         half_w = top * width / height
         right, up, fwd = orientation(self.yaw_deg, self.pitch_deg)
-        centre = EyeView(-1, self.position.copy(), look_matrix(self.position, right, up, fwd),
-                         frustum(-half_w, half_w, -top, top, near, far), width, height, near, far)
+        centre = EyeView(
+            -1,
+            self.position.copy(),
+            look_matrix(self.position, right, up, fwd),
+            frustum(-half_w, half_w, -top, top, near, far),
+            width,
+            height,
+            near,
+            far,
+        )
         return centre.position, centre.ray(u, v)
 
     def horizontal_fov_deg(self, width: int, height: int) -> float:

@@ -16,22 +16,36 @@ EXIT_USAGE = 2
 
 
 def _common(p: argparse.ArgumentParser, scene_required: bool = False) -> None:
-    p.add_argument("--scene", default=None if scene_required else "showroom",
-                   required=scene_required,
-                   help="built-in scene (showroom, showroom-100, showroom-gi, texture-test, "
-                        "tcr-cube, corridor) or a model file (.gltf .glb .obj .ply)")
-    p.add_argument("--set", dest="assignments", action="append", default=[], metavar="KEY=VALUE",
-                   help="change a setting, e.g. --set stereo.ipd_mm=60 (repeatable)")
+    p.add_argument(
+        "--scene",
+        default=None if scene_required else "showroom",
+        required=scene_required,
+        help="built-in scene (showroom, showroom-100, showroom-gi, texture-test, "
+        "tcr-cube, corridor) or a model file (.gltf .glb .obj .ply)",
+    )
+    p.add_argument(
+        "--set",
+        dest="assignments",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change a setting, e.g. --set stereo.ipd_mm=60 (repeatable)",
+    )
     p.add_argument("--preset", help="settings preset saved from the window (JSON)")
-    p.add_argument("--path", help="camera+gaze path (JSON file, or a built-in: "
-                                  "showroom_walkthrough, tcr_cube_distance, tcr_cube_orbit, "
-                                  "tcr_cube_gaze) instead of the scene's default")
+    p.add_argument(
+        "--path",
+        help="camera+gaze path (JSON file, or a built-in: "
+        "showroom_walkthrough, tcr_cube_distance, tcr_cube_orbit, "
+        "tcr_cube_gaze) instead of the scene's default",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="vrpreview", description="Stereo VR preview for interiors.",
-        epilog="Without a command the window opens (or, with no display, the headless demo runs).")
+        prog="vrpreview",
+        description="Stereo VR preview for interiors.",
+        epilog="Without a command the window opens (or, with no display, the headless demo runs).",
+    )
     _common(parser)
     parser.add_argument("--list-settings", action="store_true", help="print every setting key")
     sub = parser.add_subparsers(dest="command")
@@ -46,26 +60,47 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
     b.add_argument("--frames", type=int, default=120, help="frames to time (0: the whole path)")
     b.add_argument("--warmup", type=int, default=5, help="frames rendered before timing")
-    b.add_argument("--compare-every", type=int, default=0, metavar="K",
-                   help="every K-th frame, measure PSNR/SSIM/FLIP against full quality")
-    b.add_argument("--stride", type=int, default=1, metavar="K",
-                   help="time every K-th frame of the path only (a long walk in fewer frames)")
+    b.add_argument(
+        "--compare-every",
+        type=int,
+        default=0,
+        metavar="K",
+        help="every K-th frame, measure PSNR/SSIM/FLIP against full quality",
+    )
+    b.add_argument(
+        "--stride",
+        type=int,
+        default=1,
+        metavar="K",
+        help="time every K-th frame of the path only (a long walk in fewer frames)",
+    )
     ex = sub.add_parser("experiments", help="run a paper's benchmark set and print its tables")
-    ex.add_argument("which", choices=("tcr", "cps", "photons"),
-                    help="tcr: texture LOD; cps: coarse shading; photons: photon mapping")
+    ex.add_argument(
+        "which",
+        choices=("tcr", "cps", "photons"),
+        help="tcr: texture LOD; cps: coarse shading; photons: photon mapping",
+    )
     ex.add_argument("--out", default=None, help="folder for the JSON files (out/bench-WHICH)")
     ex.add_argument("--only", default=None, help="only the runs whose name contains this")
-    st = sub.add_parser("study", help="speed/accuracy study: a settings matrix against full "
-                                      "quality; results.json/.csv, report.md, pareto.png")
-    st.add_argument("which", choices=("cps", "tcr", "photons"),
-                    help="cps: corridor; tcr and photons: showroom")
+    st = sub.add_parser(
+        "study",
+        help="speed/accuracy study: a settings matrix against full "
+        "quality; results.json/.csv, report.md, pareto.png",
+    )
+    st.add_argument(
+        "which", choices=("cps", "tcr", "photons"), help="cps: corridor; tcr and photons: showroom"
+    )
     st.add_argument("--out", default=None, help="folder (out/study-WHICH); resumes if present")
     st.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
     rep = sub.add_parser("report", help="benchmark JSON files as one markdown table")
     rep.add_argument("files", nargs="+", help="JSON files written by vrpreview bench")
-    rep.add_argument("--group", action="append", default=[], metavar="KEY",
-                     help="also list fps per group: by_state, by_gazed_level, "
-                          "by_gazed_distance_m (repeatable)")
+    rep.add_argument(
+        "--group",
+        action="append",
+        default=[],
+        metavar="KEY",
+        help="also list fps per group: by_state, by_gazed_level, by_gazed_distance_m (repeatable)",
+    )
     d = sub.add_parser("demo", help="walk the default path headless: screenshots + summary")
     _common(d)
     d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
@@ -82,8 +117,12 @@ def _settings(args: argparse.Namespace) -> Settings:
 def _progress(label: str):
     def report(done: int, total: int) -> None:
         if done == total or done % 30 == 0:
-            print(f"\r{label}: {done}/{total} frames", end="\n" if done == total else "",
-                  file=sys.stderr, flush=True)
+            print(
+                f"\r{label}: {done}/{total} frames",
+                end="\n" if done == total else "",
+                file=sys.stderr,
+                flush=True,
+            )
 
     return report
 
@@ -110,8 +149,15 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         path = resolve_path(args.path) if args.path else None
         return _run(args, settings, path)
-    except (SettingsError, SceneLoadError, PathError, GLUnavailableError, ShaderError,
-            ValueError, OSError) as exc:
+    except (
+        SettingsError,
+        SceneLoadError,
+        PathError,
+        GLUnavailableError,
+        ShaderError,
+        ValueError,
+        OSError,
+    ) as exc:
         print(f"vrpreview: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
 
@@ -143,34 +189,51 @@ def _run(args: argparse.Namespace, settings: Settings, path) -> int:
         return 0
     if args.command == "bench":
         size = bench.parse_size(args.size)
-        result = bench.bench(args.scene, size, args.frames, settings, args.warmup, path,
-                             _progress("bench"), args.compare_every, args.stride)
+        result = bench.bench(
+            args.scene,
+            size,
+            args.frames,
+            settings,
+            args.warmup,
+            path,
+            _progress("bench"),
+            args.compare_every,
+            args.stride,
+        )
         from app.fileio import atomic_write_json
 
         atomic_write_json(args.out, result)
         passes = ", ".join(f"{k} {v['median_ms']:.1f}" for k, v in result["passes"].items())
-        print(f"{result['scene']['name']} {args.size}: {result['fps_median']:.1f} fps, "
-              f"frame {result['frame_ms']['median']:.1f} ms median; passes (ms) {passes}")
+        print(
+            f"{result['scene']['name']} {args.size}: {result['fps_median']:.1f} fps, "
+            f"frame {result['frame_ms']['median']:.1f} ms median; passes (ms) {passes}"
+        )
         print(f"textures resident: {result['texture_resident_bytes'] / 1e6:.2f} MB (median)")
         err = result.get("error_vs_full_quality")
         if err and err["frame"].get("frames"):
             f, g = err["frame"], err["gazed_object"]
-            print(f"error vs full quality: frame PSNR {f['psnr_db']:.1f} dB, SSIM "
-                  f"{f['ssim']:.3f}, FLIP {f['flip']:.3f}; gazed object "
-                  f"{g.get('psnr_db', math.nan):.1f} dB, SSIM {g.get('ssim', math.nan):.3f}")
+            print(
+                f"error vs full quality: frame PSNR {f['psnr_db']:.1f} dB, SSIM "
+                f"{f['ssim']:.3f}, FLIP {f['flip']:.3f}; gazed object "
+                f"{g.get('psnr_db', math.nan):.1f} dB, SSIM {g.get('ssim', math.nan):.3f}"
+            )
         print(f"wrote {args.out}")
         return 1 if result["errors"] else 0
     if args.command == "demo" or not has_display():
         if args.command != "demo":
-            print("vrpreview: no display found (DISPLAY/WAYLAND_DISPLAY unset): running the "
-                  "default walkthrough headless instead; screenshots and a frame-time summary "
-                  "go to out/", file=sys.stderr)
+            print(
+                "vrpreview: no display found (DISPLAY/WAYLAND_DISPLAY unset): running the "
+                "default walkthrough headless instead; screenshots and a frame-time summary "
+                "go to out/",
+                file=sys.stderr,
+            )
         out_dir = Path(getattr(args, "out_dir", "out"))
         size = bench.parse_size(getattr(args, "size", "1280x720"))
-        summary = bench.demo(args.scene, out_dir, size, settings,
-                             progress=_progress("walkthrough"))
-        print(f"{summary['frames']} frames, {summary['fps_median']:.1f} fps median; "
-              f"{len(summary['screenshots'])} screenshots and summary.json in {out_dir}/")
+        summary = bench.demo(args.scene, out_dir, size, settings, progress=_progress("walkthrough"))
+        print(
+            f"{summary['frames']} frames, {summary['fps_median']:.1f} fps median; "
+            f"{len(summary['screenshots'])} screenshots and summary.json in {out_dir}/"
+        )
         return 0
     # The window: ui/ is the only layer that imports Qt, loaded here on demand.
     window = importlib.import_module("ui.main_window")

@@ -70,8 +70,9 @@ def view_rays(eye: EyeView, u: ArrayLike, v: ArrayLike) -> np.ndarray:
     u_arr, v_arr = np.broadcast_arrays(np.asarray(u, np.float64), np.asarray(v, np.float64))
     u_arr = np.clip(np.where(np.isfinite(u_arr), u_arr, 0.5), 0.0, 1.0)
     v_arr = np.clip(np.where(np.isfinite(v_arr), v_arr, 0.5), 0.0, 1.0)
-    ndc = np.stack([2 * u_arr - 1, 1 - 2 * v_arr, np.full_like(u_arr, -1.0),
-                    np.ones_like(u_arr)], axis=-1)
+    ndc = np.stack(
+        [2 * u_arr - 1, 1 - 2 * v_arr, np.full_like(u_arr, -1.0), np.ones_like(u_arr)], axis=-1
+    )
     p = ndc @ np.linalg.inv(eye.projection).T
     d_view = p[..., :3] / p[..., 3:4]
     d = d_view @ np.linalg.inv(eye.view)[:3, :3].T
@@ -163,7 +164,7 @@ def side_caps(caster: RayCaster | None, eye: EyeView, settings: CpsSettings) -> 
     caps: dict[str, int] = {}
     distances: dict[str, float] = {}
     for i, side in enumerate(SIDES):
-        nearest = float(np.min(dist[i * n:(i + 1) * n]))
+        nearest = float(np.min(dist[i * n : (i + 1) * n]))
         distances[side] = nearest
         caps[side] = cap_from_distance(nearest, settings)
     hit = np.isfinite(dist)
@@ -239,8 +240,14 @@ def block_centres(size: int, level: int) -> np.ndarray:
     return np.clip(centre, 0.5, size - 0.5)
 
 
-def detail_map(eye: EyeView, width: int, height: int, gaze_uv: tuple[float, float],
-               caps: Mapping[str, int] | SideCaps, settings: CpsSettings) -> np.ndarray:
+def detail_map(
+    eye: EyeView,
+    width: int,
+    height: int,
+    gaze_uv: tuple[float, float],
+    caps: Mapping[str, int] | SideCaps,
+    settings: CpsSettings,
+) -> np.ndarray:
     """The level s of every pixel of one eye's W x H viewport, as an (H, W) uint8 array.
 
     theta(u, v) is the angle between the eye's rays through (u, v) and through the gaze point
@@ -319,8 +326,9 @@ def shaded_samples(level_map: np.ndarray) -> int:
 # ---------------------------------------------------------------------------------------------
 
 
-def _levels_and_grid(colours: np.ndarray, levels: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _levels_and_grid(
+    colours: np.ndarray, levels: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validated (H, W) block sizes L and full (H, W) x and y pixel index grids."""
     if levels.shape != colours.shape[:2]:
         raise ValueError(f"level map {levels.shape} does not match the image {colours.shape}")

@@ -34,8 +34,20 @@ class Run:
     warmup: int = 5
 
     def command(self) -> str:
-        parts = ["vrpreview", "bench", "--scene", self.scene, "--path", self.path,
-                 "--size", self.size, "--frames", str(self.frames), "--warmup", str(self.warmup)]
+        parts = [
+            "vrpreview",
+            "bench",
+            "--scene",
+            self.scene,
+            "--path",
+            self.path,
+            "--size",
+            self.size,
+            "--frames",
+            str(self.frames),
+            "--warmup",
+            str(self.warmup),
+        ]
         if self.stride > 1:
             parts += ["--stride", str(self.stride)]
         if self.compare_every:
@@ -48,16 +60,26 @@ class Run:
 def tcr_runs() -> list[Run]:
     """TCR paper: the cube against distance, orbiting (state 1), gaze held (states 2 and 3), and
     the showroom walkthrough; each with TCR off, ergonomics and psychology."""
-    presets = (("off", ("tcr.enabled=false",)),
-               ("ergonomics", ("tcr.enabled=true", "tcr.preset=ergonomics")),
-               ("psychology", ("tcr.enabled=true", "tcr.preset=psychology")))
+    presets = (
+        ("off", ("tcr.enabled=false",)),
+        ("ergonomics", ("tcr.enabled=true", "tcr.preset=ergonomics")),
+        ("psychology", ("tcr.enabled=true", "tcr.preset=psychology")),
+    )
     runs = []
     for path in ("tcr_cube_distance", "tcr_cube_orbit", "tcr_cube_gaze", "showroom_walkthrough"):
         scene = "showroom" if path == "showroom_walkthrough" else "tcr-cube"
         every = 20 if scene == "showroom" else 30
         for name, sets in presets:
-            runs.append(Run(f"{path}-{name}", scene, path, sets, compare_every=every,
-                            groups=("by_state", "by_gazed_level")))
+            runs.append(
+                Run(
+                    f"{path}-{name}",
+                    scene,
+                    path,
+                    sets,
+                    compare_every=every,
+                    groups=("by_state", "by_gazed_level"),
+                )
+            )
     return runs
 
 
@@ -66,40 +88,83 @@ def cps_runs() -> list[Run]:
     modes), Table 2 (multi-level against single dispatch per maximum block) and the image
     error of the filters and the temporal filter against full-rate lighting."""
     walk = ("corridor", "corridor_walk")
-    table1 = (("none-fragment", ("cps.mode=none", "render.lighting=fragment")),
-              ("none-compute", ("cps.mode=none", "render.lighting=compute")),
-              ("black-mask", ("cps.mode=black-mask", "render.lighting=fragment")),
-              ("blur-mask", ("cps.mode=blur-mask", "render.lighting=fragment")),
-              ("cps-compute", ("cps.mode=cps", "render.lighting=compute")),
-              ("cps-fragment", ("cps.mode=cps", "render.lighting=fragment")))
+    table1 = (
+        ("none-fragment", ("cps.mode=none", "render.lighting=fragment")),
+        ("none-compute", ("cps.mode=none", "render.lighting=compute")),
+        ("black-mask", ("cps.mode=black-mask", "render.lighting=fragment")),
+        ("blur-mask", ("cps.mode=blur-mask", "render.lighting=fragment")),
+        ("cps-compute", ("cps.mode=cps", "render.lighting=compute")),
+        ("cps-fragment", ("cps.mode=cps", "render.lighting=fragment")),
+    )
     # As in the paper every light is evaluated at every pixel (light culling off); then the
     # baseline and CPS once more with tiled light culling, which this app adds.
     paper = ("render.light_culling=false",)
-    runs = [Run(f"t1-{name}", *walk, (*sets, *paper), frames=0, stride=12, compare_every=4)
-            for name, sets in table1]
-    runs += [Run(f"t1c-{name}", *walk, (*sets, "render.light_culling=true"), frames=0,
-                 stride=12, compare_every=4)
-             for name, sets in table1 if name in ("none-fragment", "cps-fragment")]
+    runs = [
+        Run(f"t1-{name}", *walk, (*sets, *paper), frames=0, stride=12, compare_every=4)
+        for name, sets in table1
+    ]
+    runs += [
+        Run(
+            f"t1c-{name}",
+            *walk,
+            (*sets, "render.light_culling=true"),
+            frames=0,
+            stride=12,
+            compare_every=4,
+        )
+        for name, sets in table1
+        if name in ("none-fragment", "cps-fragment")
+    ]
     for level in range(1, 6):
         for dispatch in ("multi", "single"):
-            runs.append(Run(f"t2-block{1 << level:02d}-{dispatch}", *walk,
-                            ("cps.mode=cps", "render.lighting=compute",
-                             f"cps.dispatch={dispatch}", f"cps.max_level={level}", *paper),
-                            frames=0, stride=12))
-    filters = (("raw", ("cps.filter=none",)), ("bilinear", ("cps.filter=bilinear",)),
-               ("hierarchical", ("cps.filter=hierarchical",)),
-               ("hierarchical-temporal", ("cps.filter=hierarchical", "cps.temporal=true")),
-               ("hierarchical-temporal-noreproject",
-                ("cps.filter=hierarchical", "cps.temporal=true", "cps.reproject=false")))
+            runs.append(
+                Run(
+                    f"t2-block{1 << level:02d}-{dispatch}",
+                    *walk,
+                    (
+                        "cps.mode=cps",
+                        "render.lighting=compute",
+                        f"cps.dispatch={dispatch}",
+                        f"cps.max_level={level}",
+                        *paper,
+                    ),
+                    frames=0,
+                    stride=12,
+                )
+            )
+    filters = (
+        ("raw", ("cps.filter=none",)),
+        ("bilinear", ("cps.filter=bilinear",)),
+        ("hierarchical", ("cps.filter=hierarchical",)),
+        ("hierarchical-temporal", ("cps.filter=hierarchical", "cps.temporal=true")),
+        (
+            "hierarchical-temporal-noreproject",
+            ("cps.filter=hierarchical", "cps.temporal=true", "cps.reproject=false"),
+        ),
+    )
     for name, sets in filters:
-        runs.append(Run(f"err-{name}", *walk, ("cps.mode=cps", "render.lighting=fragment",
-                                               *sets), frames=120, compare_every=10))
+        runs.append(
+            Run(
+                f"err-{name}",
+                *walk,
+                ("cps.mode=cps", "render.lighting=fragment", *sets),
+                frames=120,
+                compare_every=10,
+            )
+        )
     # The temporal filter when frames are 0.1 s apart (10 fps, about what this machine shows):
     # the history lags 25 cm of walking, which reprojection has to undo.
     for name, sets in filters[3:]:
-        runs.append(Run(f"err10fps-{name}", *walk, ("cps.mode=cps", "render.lighting=fragment",
-                                                    *sets), frames=60, stride=6,
-                        compare_every=5))
+        runs.append(
+            Run(
+                f"err10fps-{name}",
+                *walk,
+                ("cps.mode=cps", "render.lighting=fragment", *sets),
+                frames=60,
+                stride=6,
+                compare_every=5,
+            )
+        )
     return runs
 
 
@@ -108,8 +173,10 @@ def photon_runs() -> list[Run]:
     spread over the walk (every 200th), both eyes at 640x720 (see app.photon_bench)."""
     from app.photon_bench import table_runs
 
-    return [Run(name, "showroom", "showroom_walkthrough", sets, frames=3, stride=200, warmup=1)
-            for name, sets in table_runs()]
+    return [
+        Run(name, "showroom", "showroom_walkthrough", sets, frames=3, stride=200, warmup=1)
+        for name, sets in table_runs()
+    ]
 
 
 EXPERIMENTS = {"tcr": tcr_runs, "cps": cps_runs, "photons": photon_runs}
@@ -125,22 +192,37 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
         print(f"[{index}/{len(runs)}] {run.name}: {run.command()}", file=sys.stderr, flush=True)
         settings = Settings()
         settings.apply(list(run.sets))
-        result = bench(run.scene, parse_size(run.size), run.frames, settings, run.warmup,
-                       resolve_path(run.path), None, run.compare_every, run.stride)
+        result = bench(
+            run.scene,
+            parse_size(run.size),
+            run.frames,
+            settings,
+            run.warmup,
+            resolve_path(run.path),
+            None,
+            run.compare_every,
+            run.stride,
+        )
         result["command"] = run.command()
         target = out / f"{run.name}.json"
         atomic_write_json(target, result)
         files.append(target)
-        print(f"    {result['fps_median']:.2f} fps, {result['frame_ms']['median']:.1f} ms",
-              file=sys.stderr, flush=True)
+        print(
+            f"    {result['fps_median']:.2f} fps, {result['frame_ms']['median']:.1f} ms",
+            file=sys.stderr,
+            flush=True,
+        )
     if which == "photons":
         import json
 
         from app.photon_bench import tables, write_peer
 
         # Every run in the folder, so a table can be completed by later --only runs.
-        results = {f.stem: json.loads(f.read_text(encoding="utf-8"))
-                   for f in sorted(out.glob("*.json")) if f.stem != "peer"}
+        results = {
+            f.stem: json.loads(f.read_text(encoding="utf-8"))
+            for f in sorted(out.glob("*.json"))
+            if f.stem != "peer"
+        }
         text = tables(results)
         if not only or "peer" in only:
             print("peer comparison with scipy cKDTree", file=sys.stderr, flush=True)

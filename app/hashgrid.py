@@ -38,8 +38,14 @@ _COORD_LIMIT = float(1 << 62)  # cell coordinates are clipped here before the in
 class GridTooLarge(ValueError):
     """The hash grid for this radius and photon spread needs more cells than the GPU limit."""
 
-    def __init__(self, radius: float, extent: np.ndarray, dims: tuple[float, float, float],
-                 cells: float, limit: int) -> None:
+    def __init__(
+        self,
+        radius: float,
+        extent: np.ndarray,
+        dims: tuple[float, float, float],
+        cells: float,
+        limit: int,
+    ) -> None:
         self.radius = float(radius)
         self.cells = cells
         self.limit = int(limit)
@@ -53,7 +59,8 @@ class GridTooLarge(ValueError):
             f"hash grid too large: radius {radius:.4g} over a photon extent of ({ex}) needs "
             f"{dm} = {cells:.6g} cells, more than the limit of {limit} cells "
             f"(start array of {(limit + 1) * 4 / 2**20:.0f} MiB); raise the radius{hint} "
-            f"or trace fewer photons spread over a smaller part of the scene")
+            f"or trace fewer photons spread over a smaller part of the scene"
+        )
 
 
 def _f32_down(x: np.ndarray) -> np.ndarray:
@@ -118,21 +125,26 @@ class HashGrid:
     dims: tuple[int, int, int]  # X, Y, Z including `reach` padding layers on each side
     order: np.ndarray  # (N,) int64: photon index stored at each sorted slot
     start: np.ndarray  # (X*Y*Z + 1,) uint32: cell h holds sorted slots start[h] .. start[h+1]-1
-    sorted_positions: np.ndarray = field(repr=False, compare=False,
-                                         default_factory=lambda: np.zeros((0, 3)))
+    sorted_positions: np.ndarray = field(
+        repr=False, compare=False, default_factory=lambda: np.zeros((0, 3))
+    )
     # (N, 3) float64 photon positions in sorted-slot order (for visit_stats)
 
     @staticmethod
-    def build(positions: np.ndarray, radius: float, cells_per_radius: int = 1,
-              max_cells: int = MAX_CELLS) -> HashGrid:
+    def build(
+        positions: np.ndarray, radius: float, cells_per_radius: int = 1, max_cells: int = MAX_CELLS
+    ) -> HashGrid:
         """Sort the photons into cells of edge ``radius / cells_per_radius``.
 
         Raises ValueError for a bad radius or non-finite positions and GridTooLarge when the grid
         would need more than ``max_cells`` cells (checked before anything big is allocated).
         """
         r = check_radius(radius)
-        if isinstance(cells_per_radius, bool) or int(cells_per_radius) != cells_per_radius \
-                or cells_per_radius < 1:
+        if (
+            isinstance(cells_per_radius, bool)
+            or int(cells_per_radius) != cells_per_radius
+            or cells_per_radius < 1
+        ):
             raise ValueError(f"cells_per_radius must be an integer >= 1, got {cells_per_radius!r}")
         reach = int(cells_per_radius)
         cell = _f32_up(r / reach)
@@ -142,8 +154,16 @@ class HashGrid:
             raise ValueError("too many photons for uint32 start indices")
         if n == 0:
             # Nothing to find: one empty cell, so the GPU arrays are never zero-sized.
-            return HashGrid(r, cell, reach, np.zeros(3), (1, 1, 1), np.zeros(0, np.int64),
-                            np.zeros(2, np.uint32), np.zeros((0, 3)))
+            return HashGrid(
+                r,
+                cell,
+                reach,
+                np.zeros(3),
+                (1, 1, 1),
+                np.zeros(0, np.int64),
+                np.zeros(2, np.uint32),
+                np.zeros((0, 3)),
+            )
         pmin, pmax = p.min(axis=0), p.max(axis=0)
         origin = _f32_down(pmin - (reach + PAD_MARGIN) * cell)
         for _ in range(4):  # only matters when a cell is near float64 resolution
@@ -156,8 +176,7 @@ class HashGrid:
             top = np.floor((pmax - origin) / cell)
         dims_f = tuple(float(t) + 1.0 + reach for t in top)
         cells_f = math.prod(dims_f)
-        if not all(math.isfinite(d) and d < _COORD_LIMIT for d in dims_f) \
-                or cells_f > max_cells:
+        if not all(math.isfinite(d) and d < _COORD_LIMIT for d in dims_f) or cells_f > max_cells:
             raise GridTooLarge(r, pmax - pmin, dims_f, cells_f, max_cells)
         dims = (int(dims_f[0]), int(dims_f[1]), int(dims_f[2]))
         ncells = dims[0] * dims[1] * dims[2]
@@ -175,9 +194,8 @@ class HashGrid:
             c1 = min(c0 + step, ncells)
             a, b = int(edges[i]), int(edges[i + 1])
             cnt = np.bincount(hs[a:b] - c0, minlength=c1 - c0)
-            start[c0 + 1:c1 + 1] = a + np.cumsum(cnt)
-        return HashGrid(r, cell, reach, origin, dims, order, start,
-                        np.ascontiguousarray(p[order]))
+            start[c0 + 1 : c1 + 1] = a + np.cumsum(cnt)
+        return HashGrid(r, cell, reach, origin, dims, order, start, np.ascontiguousarray(p[order]))
 
     @property
     def cell_count(self) -> int:
@@ -213,8 +231,7 @@ class HashGrid:
                 row = (z * self.dims[1] + y) * self.dims[0]
                 begin.append(self.start[row + x0])
                 end.append(self.start[row + x1 + 1])
-        return (np.stack(begin, axis=1).astype(np.int64),
-                np.stack(end, axis=1).astype(np.int64))
+        return (np.stack(begin, axis=1).astype(np.int64), np.stack(end, axis=1).astype(np.int64))
 
     def _inside(self, coords: np.ndarray) -> np.ndarray:
         return ((coords >= 0) & (coords < np.array(self.dims, np.int64))).all(axis=1)
@@ -292,8 +309,9 @@ class KdTree:
 
     order: np.ndarray  # (N,) int64 photon index at node i
     axis: np.ndarray  # (N,) uint8 split axis of node i (0, 1, 2); leaves: the same rule
-    positions: np.ndarray = field(repr=False, compare=False,
-                                  default_factory=lambda: np.zeros((0, 3)))
+    positions: np.ndarray = field(
+        repr=False, compare=False, default_factory=lambda: np.zeros((0, 3))
+    )
     # (N, 3) float64 photon positions in photon order (for query_radius)
 
     @staticmethod
@@ -327,9 +345,14 @@ class KdTree:
             np.cumsum(length[:-1], out=start[1:])
             seg = np.repeat(np.arange(s, dtype=np.int64), length)
             # Ranks are monotonic in the coordinate, so min/max rank give the extent exactly.
-            ext = np.stack([sorted_vals[a][np.maximum.reduceat(ranks[a], start)]
-                            - sorted_vals[a][np.minimum.reduceat(ranks[a], start)]
-                            for a in range(3)], axis=1)
+            ext = np.stack(
+                [
+                    sorted_vals[a][np.maximum.reduceat(ranks[a], start)]
+                    - sorted_vals[a][np.minimum.reduceat(ranks[a], start)]
+                    for a in range(3)
+                ],
+                axis=1,
+            )
             ax = np.argmax(ext, axis=1)
             ax_el = ax[seg]
             key = np.where(ax_el == 0, ranks[0], np.where(ax_el == 1, ranks[1], ranks[2]))
@@ -352,7 +375,7 @@ class KdTree:
             order[node] = by_axis[0][ranks[0][med]]
             axis[node] = ax
             lp = src[:, :lmax].ravel()
-            rp = src[:, lmax + 1:].ravel()
+            rp = src[:, lmax + 1 :].ravel()
             nxt = np.concatenate([lp[lp >= 0], rp[rp >= 0]])
             ranks = [rk[nxt] for rk in ranks]
             length = np.concatenate([left, right])

@@ -48,9 +48,13 @@ class PhotonCache:
             return None
         return self.map if self.key == map_key(settings, scene) else None
 
-    def ensure(self, settings: PhotonSettings, scene: Scene | None,
-               progress: Callable[[float], None] | None = None,
-               cancel: Callable[[], bool] | None = None) -> PhotonMap | None:
+    def ensure(
+        self,
+        settings: PhotonSettings,
+        scene: Scene | None,
+        progress: Callable[[float], None] | None = None,
+        cancel: Callable[[], bool] | None = None,
+    ) -> PhotonMap | None:
         """Trace if needed (blocking; the window calls this from a worker thread)."""
         if not wanted(settings, scene):
             return None
@@ -68,14 +72,28 @@ class PhotonCache:
         self.key, self.scene, self.map = key, scene, photons
 
 
-def trace(settings: PhotonSettings, scene: Scene,
-          progress: Callable[[float], None] | None = None,
-          cancel: Callable[[], bool] | None = None) -> PhotonMap:
+def trace(
+    settings: PhotonSettings,
+    scene: Scene,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> PhotonMap:
     from app.photons import trace_photons  # embree is loaded only when photons are wanted
 
     start = time.perf_counter()
-    photons = trace_photons(scene, settings.photons, settings.seed,
-                            max_bounces=settings.max_bounces, progress=progress, cancel=cancel)
-    log.info("traced %d photon paths in %s: %d photons stored, %.0f ms", settings.photons,
-             scene.name, len(photons), (time.perf_counter() - start) * 1e3)
+    photons = trace_photons(
+        scene,
+        settings.photons,
+        settings.seed,
+        max_bounces=settings.max_bounces,
+        progress=progress,
+        cancel=cancel,
+    )
+    log.info(
+        "traced %d photon paths in %s: %d photons stored, %.0f ms",
+        settings.photons,
+        scene.name,
+        len(photons),
+        (time.perf_counter() - start) * 1e3,
+    )
     return photons

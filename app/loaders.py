@@ -113,8 +113,10 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
     ext = p.suffix.lower()
     if ext not in SUPPORTED_EXTENSIONS:
         kind = f"'{ext}' files are" if ext else "files without an extension are"
-        raise SceneLoadError(f"Cannot open '{p.name}': {kind} not supported "
-                             f"(supported: {', '.join(SUPPORTED_EXTENSIONS)}).")
+        raise SceneLoadError(
+            f"Cannot open '{p.name}': {kind} not supported "
+            f"(supported: {', '.join(SUPPORTED_EXTENSIONS)})."
+        )
 
     warnings: list[str] = []
     gltf_doc = _read_gltf_json(p) if ext in (".gltf", ".glb") else None
@@ -125,15 +127,26 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
         builder.warn_missing_obj_textures()
     lights = _gltf_lights(gltf_doc, warnings) if gltf_doc is not None else []
 
-    raw = Scene(name=p.stem, meshes=builder.meshes, materials=builder.materials,
-                textures=builder.textures, lights=lights, source=str(path), warnings=warnings)
+    raw = Scene(
+        name=p.stem,
+        meshes=builder.meshes,
+        materials=builder.materials,
+        textures=builder.textures,
+        lights=lights,
+        source=str(path),
+        warnings=warnings,
+    )
     if raw.triangle_count == 0:
-        raise SceneLoadError(f"Cannot show '{p.name}': it contains no triangles "
-                             "(it is empty, or holds only points or lines).")
+        raise SceneLoadError(
+            f"Cannot show '{p.name}': it contains no triangles "
+            "(it is empty, or holds only points or lines)."
+        )
     scene = raw.sanitized()
     if not scene.meshes:
-        raise SceneLoadError(f"Cannot show '{p.name}': none of its triangles are valid "
-                             "(every vertex position is broken or every triangle is flat).")
+        raise SceneLoadError(
+            f"Cannot show '{p.name}': none of its triangles are valid "
+            "(every vertex position is broken or every triangle is flat)."
+        )
 
     caster = RayCaster(scene.triangles(), np.arange(scene.triangle_count))
     spawn = find_spawn(scene, caster)
@@ -141,12 +154,20 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
     lights = scene.lights
     if not lights:
         lights = default_lights(scene, spawn, caster)
-        notes.append(f"the file has no lights: added {len(lights)} default point "
-                     f"light{'s' if len(lights) != 1 else ''} so the scene is visible")
+        notes.append(
+            f"the file has no lights: added {len(lights)} default point "
+            f"light{'s' if len(lights) != 1 else ''} so the scene is visible"
+        )
     if spawn.floor_y is None:
         log.info("%s: no interior found, viewing it from outside", p.name)
-    return replace(scene, spawn=spawn.viewpoint, floor_y=spawn.floor_y, lights=lights,
-                   warnings=notes, indirect=_gltf_wants_indirect(gltf_doc)).sanitized()
+    return replace(
+        scene,
+        spawn=spawn.viewpoint,
+        floor_y=spawn.floor_y,
+        lights=lights,
+        warnings=notes,
+        indirect=_gltf_wants_indirect(gltf_doc),
+    ).sanitized()
 
 
 def _gltf_wants_indirect(doc: dict[str, Any] | None) -> bool:
@@ -184,34 +205,49 @@ def _read_gltf_json(path: Path) -> dict[str, Any]:
         raise SceneLoadError(f"Cannot read '{path.name}': {exc.strerror or exc}.") from exc
     if path.suffix.lower() == ".glb":
         if len(data) < 20 or data[:4] != _GLB_MAGIC:
-            raise SceneLoadError(f"Cannot read '{path.name}': it is not a binary glTF (.glb) "
-                                 "file (the glTF header is missing or damaged).")
+            raise SceneLoadError(
+                f"Cannot read '{path.name}': it is not a binary glTF (.glb) "
+                "file (the glTF header is missing or damaged)."
+            )
         version = struct.unpack_from("<I", data, 4)[0]
         if version != 2:
-            raise SceneLoadError(f"Cannot read '{path.name}': only glTF 2.0 is supported "
-                                 f"(this file says version {version}).")
+            raise SceneLoadError(
+                f"Cannot read '{path.name}': only glTF 2.0 is supported "
+                f"(this file says version {version})."
+            )
         chunk_len, chunk_type = struct.unpack_from("<II", data, 12)
         if chunk_type != _GLB_JSON_CHUNK or 20 + chunk_len > len(data):
-            raise SceneLoadError(f"Cannot read '{path.name}': the file is truncated or damaged "
-                                 "(its JSON chunk is missing or cut short).")
-        text = data[20:20 + chunk_len]
+            raise SceneLoadError(
+                f"Cannot read '{path.name}': the file is truncated or damaged "
+                "(its JSON chunk is missing or cut short)."
+            )
+        text = data[20 : 20 + chunk_len]
     else:
         text = data
     try:
         doc = json.loads(text.decode("utf-8-sig"))
     except UnicodeDecodeError as exc:
-        raise SceneLoadError(f"Cannot read '{path.name}': it is not a glTF file "
-                             "(the content is not UTF-8 JSON text).") from exc
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': it is not a glTF file "
+            "(the content is not UTF-8 JSON text)."
+        ) from exc
     except json.JSONDecodeError as exc:
-        raise SceneLoadError(f"Cannot read '{path.name}': its glTF JSON is invalid or truncated "
-                             f"({exc.msg} at line {exc.lineno}, column {exc.colno}).") from exc
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': its glTF JSON is invalid or truncated "
+            f"({exc.msg} at line {exc.lineno}, column {exc.colno})."
+        ) from exc
     if not isinstance(doc, dict):
         raise SceneLoadError(f"Cannot read '{path.name}': it is JSON but not a glTF document.")
-    version = str(doc.get("asset", {}).get("version", "2.0")) if isinstance(
-        doc.get("asset"), dict) else "2.0"
+    version = (
+        str(doc.get("asset", {}).get("version", "2.0"))
+        if isinstance(doc.get("asset"), dict)
+        else "2.0"
+    )
     if not version.startswith("2"):
-        raise SceneLoadError(f"Cannot read '{path.name}': only glTF 2.0 is supported "
-                             f"(this file says version {version}).")
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': only glTF 2.0 is supported "
+            f"(this file says version {version})."
+        )
     return doc
 
 
@@ -227,11 +263,13 @@ def _trimesh_load(path: Path) -> Any:
         return trimesh.load_scene(str(path), process=False)
     except FileNotFoundError as exc:
         missing = Path(exc.filename).name if exc.filename else str(exc)
-        raise SceneLoadError(f"Cannot read '{path.name}': a file it needs is missing "
-                             f"({missing}).") from exc
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': a file it needs is missing ({missing})."
+        ) from exc
     except MemoryError as exc:
-        raise SceneLoadError(f"Cannot read '{path.name}': it is too large for the available "
-                             "memory.") from exc
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': it is too large for the available memory."
+        ) from exc
     except Exception as exc:  # noqa: BLE001 - parsers raise anything on damaged input
         detail = str(exc).strip() or type(exc).__name__
         if isinstance(exc, (ImportError, UnicodeDecodeError)):
@@ -239,8 +277,10 @@ def _trimesh_load(path: Path) -> Any:
             detail = "its content is not readable text"
         if len(detail) > 200:
             detail = detail[:200] + "..."
-        raise SceneLoadError(f"Cannot read '{path.name}': the file is damaged or not a valid "
-                             f"{path.suffix.lower().lstrip('.').upper()} file ({detail}).") from exc
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': the file is damaged or not a valid "
+            f"{path.suffix.lower().lstrip('.').upper()} file ({detail})."
+        ) from exc
 
 
 # --------------------------------------------------------------------------------------------
@@ -304,8 +344,9 @@ class _SceneBuilder:
         normals = _authored_normals(geom)
         visual = getattr(geom, "visual", None)
         uvs = getattr(visual, "uv", None) if visual is not None else None
-        uvs = np.asarray(uvs, np.float64)[:, :2] if uvs is not None and len(uvs) == len(pos) \
-            else None
+        uvs = (
+            np.asarray(uvs, np.float64)[:, :2] if uvs is not None and len(uvs) == len(pos) else None
+        )
         colors = self._vertex_colors(visual, len(pos))
         face_colors = self._face_colors(visual, len(idx))
         if face_colors is not None:
@@ -333,9 +374,15 @@ class _SceneBuilder:
             normals = vertex_normals(pos, idx)
         if uvs is None:
             uvs = np.zeros((len(pos), 2))
-        return Mesh(name, pos.astype(np.float32), normals.astype(np.float32),
-                    uvs.astype(np.float32), idx.astype(np.uint32), material,
-                    None if colors is None else colors.astype(np.float32))
+        return Mesh(
+            name,
+            pos.astype(np.float32),
+            normals.astype(np.float32),
+            uvs.astype(np.float32),
+            idx.astype(np.uint32),
+            material,
+            None if colors is None else colors.astype(np.float32),
+        )
 
     def _vertex_colors(self, visual: Any, n: int) -> np.ndarray | None:
         raw = None
@@ -405,8 +452,11 @@ class _SceneBuilder:
         doc = self._gltf_materials.get(mat.name, {}) if mat.name is not None else {}
         pbr = doc.get("pbrMetallicRoughness") or {}
         factor = mat.baseColorFactor
-        tm_base = (np.asarray(factor, np.float64) / 255.0).tolist() if factor is not None \
+        tm_base = (
+            (np.asarray(factor, np.float64) / 255.0).tolist()
+            if factor is not None
             else [1.0, 1.0, 1.0, 1.0]
+        )
         base = _float_list(pbr.get("baseColorFactor", tm_base), 4, 1.0)
         metallic = _float_or(pbr.get("metallicFactor", mat.metallicFactor), 1.0)
         roughness = _float_or(pbr.get("roughnessFactor", mat.roughnessFactor), 1.0)
@@ -424,9 +474,11 @@ class _SceneBuilder:
             if "KHR_texture_transform" in (tex_info.get("extensions") or {}):
                 self.warnings.append(f"material '{name}': texture transform ignored")
             if mat.baseColorTexture is None:
-                self.warnings.append(f"material '{name}': base colour texture "
-                                     f"'{label or 'embedded image'}' could not be read, "
-                                     "using its colour only")
+                self.warnings.append(
+                    f"material '{name}': base colour texture "
+                    f"'{label or 'embedded image'}' could not be read, "
+                    "using its colour only"
+                )
         opaque = alpha_mode.upper() == "OPAQUE"
         if opaque:
             base[3] = 1.0  # glTF: alpha is ignored for OPAQUE materials
@@ -441,9 +493,14 @@ class _SceneBuilder:
         texture = None
         if mat.baseColorTexture is not None:
             texture = self._texture_index(mat.baseColorTexture, name, label, repeat, opaque)
-        return Material(name, (base[0], base[1], base[2], base[3]), texture,
-                        float(roughness), float(metallic),
-                        (emissive[0], emissive[1], emissive[2]))
+        return Material(
+            name,
+            (base[0], base[1], base[2], base[3]),
+            texture,
+            float(roughness),
+            float(metallic),
+            (emissive[0], emissive[1], emissive[2]),
+        )
 
     def _simple_material(self, mat: Any) -> Material:
         """OBJ/MTL colours are sRGB; Blinn-Phong ``Ns`` becomes a roughness.
@@ -480,32 +537,43 @@ class _SceneBuilder:
             texture = self._texture_index(image, name, None, True, False)
         else:
             self._obj_untextured[name] = mat
-        return Material(name, (rgb[0], rgb[1], rgb[2], float(np.clip(alpha, 0.0, 1.0))),
-                        texture, roughness, 0.0, (emissive[0], emissive[1], emissive[2]))
+        return Material(
+            name,
+            (rgb[0], rgb[1], rgb[2], float(np.clip(alpha, 0.0, 1.0))),
+            texture,
+            roughness,
+            0.0,
+            (emissive[0], emissive[1], emissive[2]),
+        )
 
     # ---- textures ------------------------------------------------------------------------
 
-    def _texture_index(self, image: PILImage, material: str, label: str | None, repeat: bool,
-                       opaque: bool) -> int | None:
+    def _texture_index(
+        self, image: PILImage, material: str, label: str | None, repeat: bool, opaque: bool
+    ) -> int | None:
         key = (id(image), repeat, opaque)
         if key in self._texture_keys:
             return self._texture_keys[key]
         self._keep_alive.append(image)
-        label = str(label or image.info.get("file_path") or getattr(image, "filename", "")
-                    or material)
+        label = str(
+            label or image.info.get("file_path") or getattr(image, "filename", "") or material
+        )
         try:
             rgba = _image_to_rgba(image)
         except Exception as exc:  # noqa: BLE001 - PIL decodes lazily and raises anything
-            self.warnings.append(f"material '{material}': texture '{Path(label).name}' could "
-                                 f"not be decoded ({exc}), using its colour only")
+            self.warnings.append(
+                f"material '{material}': texture '{Path(label).name}' could "
+                f"not be decoded ({exc}), using its colour only"
+            )
             self._texture_keys[key] = None
             return None
         if opaque:
             rgba = rgba.copy()
             rgba[:, :, 3] = 255
         # trimesh opens an OBJ texture once per material that names it: compare pixels too.
-        digest = hashlib.blake2b(rgba.tobytes(), digest_size=16).digest() + repr(
-            rgba.shape).encode()
+        digest = (
+            hashlib.blake2b(rgba.tobytes(), digest_size=16).digest() + repr(rgba.shape).encode()
+        )
         index = self._texture_digests.get((digest, repeat))
         if index is None:
             index = len(self.textures)
@@ -561,8 +629,10 @@ class _SceneBuilder:
         wanted = _obj_diffuse_maps(self.path)
         for name in self._obj_untextured:
             if name in wanted:
-                self.warnings.append(f"material '{name}': texture '{wanted[name]}' is missing "
-                                     "or unreadable, using its colour only")
+                self.warnings.append(
+                    f"material '{name}': texture '{wanted[name]}' is missing "
+                    "or unreadable, using its colour only"
+                )
 
 
 def _authored_normals(geom: Any) -> np.ndarray | None:
@@ -705,11 +775,18 @@ def _gltf_lights(doc: dict[str, Any], warnings: list[str]) -> list[PointLight]:
         if rng <= 0.0:
             rng = math.sqrt(max(intensity, 0.0) * 1000.0) + 1.0
         pos = matrix[:3, 3]
-        lights.append(PointLight((float(pos[0]), float(pos[1]), float(pos[2])),
-                                 (color[0], color[1], color[2]), intensity, rng))
+        lights.append(
+            PointLight(
+                (float(pos[0]), float(pos[1]), float(pos[2])),
+                (color[0], color[1], color[2]),
+                intensity,
+                rng,
+            )
+        )
     if spots:
-        warnings.append(f"{spots} spot light{'s are' if spots != 1 else ' is'} shown as a "
-                        "point light (no cone)")
+        warnings.append(
+            f"{spots} spot light{'s are' if spots != 1 else ' is'} shown as a point light (no cone)"
+        )
     for kind, count in skipped.items():
         warnings.append(f"{count} {kind} light{'s' if count != 1 else ''} not supported, ignored")
     return lights
@@ -743,16 +820,19 @@ def _gltf_local_matrix(node: dict[str, Any]) -> np.ndarray:
         values = _float_list(node["matrix"], 16, 0.0)
         return np.asarray(values).reshape(4, 4).T  # glTF stores column-major
     t = _float_list(node.get("translation"), 3, 0.0)
-    x, y, z, w = _float_list(node.get("rotation"), 4, 0.0) if "rotation" in node \
-        else (0.0, 0.0, 0.0, 1.0)
+    x, y, z, w = (
+        _float_list(node.get("rotation"), 4, 0.0) if "rotation" in node else (0.0, 0.0, 0.0, 1.0)
+    )
     s = _float_list(node.get("scale"), 3, 1.0)
     norm = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
     x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    rot = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    rot = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     m = np.eye(4)
     m[:3, :3] = rot * np.asarray(s)[None, :]
     m[:3, 3] = t
@@ -790,8 +870,9 @@ def _ring(n: int) -> np.ndarray:
     return np.column_stack([np.cos(a), np.zeros(n), np.sin(a)])
 
 
-def _interior_spawn(caster: RayCaster, normals: np.ndarray, lo: np.ndarray,
-                    hi: np.ndarray) -> SpawnResult | None:
+def _interior_spawn(
+    caster: RayCaster, normals: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> SpawnResult | None:
     """Search a grid of columns for the lowest large enclosed floor and its most open point.
 
     Each column is peeled from the top down with one batched cast per layer, so every surface
@@ -839,7 +920,8 @@ def _interior_spawn(caster: RayCaster, normals: np.ndarray, lo: np.ndarray,
     dist = dist.reshape(len(eyes), len(ring))
     hit_frac = hit.reshape(dist.shape).mean(axis=1)
     front_frac = (facing & hit).reshape(dist.shape).sum(axis=1) / np.maximum(
-        hit.reshape(dist.shape).sum(axis=1), 1)
+        hit.reshape(dist.shape).sum(axis=1), 1
+    )
     nearest = dist.min(axis=1)
     enclosed = (hit_frac >= _INSIDE_HIT_FRACTION) & (nearest >= _BODY_RADIUS_M)
     inside = enclosed & (front_frac >= _FRONT_FACING_FRACTION)
@@ -874,8 +956,9 @@ def _interior_spawn(caster: RayCaster, normals: np.ndarray, lo: np.ndarray,
     )
 
 
-def _peel_down(caster: RayCaster, xz: np.ndarray, y_top: float,
-               eps: float) -> tuple[np.ndarray, np.ndarray]:
+def _peel_down(
+    caster: RayCaster, xz: np.ndarray, y_top: float, eps: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Heights (NaN past the last) and triangle ids (-1) of every surface under each column."""
     n = len(xz)
     ys = np.full((n, _MAX_LAYERS), np.nan)
@@ -943,8 +1026,9 @@ def _outside_spawn(lo: np.ndarray, hi: np.ndarray) -> SpawnResult:
     half_angle = math.radians(90.0 * _OBJECT_VIEW_FILL / 2.0)
     distance = radius / math.sin(half_angle)
     pos = (float(centre[0]), float(centre[1]), float(centre[2] + distance))
-    return SpawnResult(Viewpoint(pos, 0.0, 0.0), None, np.zeros((0, 3)), np.zeros(0),
-                       np.zeros(0), 0.0, math.inf)
+    return SpawnResult(
+        Viewpoint(pos, 0.0, 0.0), None, np.zeros((0, 3)), np.zeros(0), np.zeros(0), 0.0, math.inf
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -983,8 +1067,14 @@ def default_lights(scene: Scene, spawn: SpawnResult, caster: RayCaster) -> list[
         typical = max(typical, 0.1)
         rng = max(3.0 * typical, diag / 3.0)
         intensity = target * (typical * typical + 1.0) / _window(typical / rng)
-        lights.append(PointLight((float(pos[0]), float(pos[1]), float(pos[2])),
-                                 (1.0, 1.0, 1.0), float(intensity), float(rng)))
+        lights.append(
+            PointLight(
+                (float(pos[0]), float(pos[1]), float(pos[2])),
+                (1.0, 1.0, 1.0),
+                float(intensity),
+                float(rng),
+            )
+        )
     return lights
 
 
@@ -1001,8 +1091,9 @@ def _interior_light_positions(spawn: SpawnResult, caster: RayCaster) -> list[np.
     k = min(k, len(pts))
     xz = pts[:, [0, 2]]
     # Farthest-point start, then a few Lloyd steps: spread out, but not pinned to the corners.
-    start = int(np.argmin(np.linalg.norm(xz - np.asarray(spawn.viewpoint.position)[[0, 2]],
-                                         axis=1)))
+    start = int(
+        np.argmin(np.linalg.norm(xz - np.asarray(spawn.viewpoint.position)[[0, 2]], axis=1))
+    )
     centres = [xz[start]]
     for _ in range(1, k):
         d = np.min([np.linalg.norm(xz - c, axis=1) for c in centres], axis=0)
@@ -1014,8 +1105,9 @@ def _interior_light_positions(spawn: SpawnResult, caster: RayCaster) -> list[np.
 
     for _ in range(8):
         label = nearest_centre(c)
-        c = np.asarray([xz[label == j].mean(axis=0) if (label == j).any() else c[j]
-                        for j in range(k)])
+        c = np.asarray(
+            [xz[label == j].mean(axis=0) if (label == j).any() else c[j] for j in range(k)]
+        )
     label = nearest_centre(c)
     probe = _sphere_directions(32)
     out = []
@@ -1027,10 +1119,8 @@ def _interior_light_positions(spawn: SpawnResult, caster: RayCaster) -> list[np.
         head = float(spawn.level_clearance[i])
         top = min(float(np.clip(0.5 * head, 2.2, 6.0)), head - 0.3)
         heights = np.linspace(top, min(EYE_HEIGHT_M, top), 5)
-        cands = np.column_stack([np.full(5, pts[i, 0]), pts[i, 1] + heights,
-                                 np.full(5, pts[i, 2])])
-        dist, _ = caster.cast_many(np.repeat(cands, len(probe), axis=0),
-                                   np.tile(probe, (5, 1)))
+        cands = np.column_stack([np.full(5, pts[i, 0]), pts[i, 1] + heights, np.full(5, pts[i, 2])])
+        dist, _ = caster.cast_many(np.repeat(cands, len(probe), axis=0), np.tile(probe, (5, 1)))
         clear = np.flatnonzero(dist.reshape(5, -1).min(axis=1) >= 0.5)
         out.append(cands[int(clear[0]) if clear.size else -1])
     return out
@@ -1047,4 +1137,4 @@ def _sphere_directions(n: int) -> np.ndarray:
 
 def _window(x: float) -> float:
     """The renderer's range falloff as assumed here: (1 - x^4)^2, clamped."""
-    return float(np.clip(1.0 - x ** 4, 1e-3, 1.0) ** 2)
+    return float(np.clip(1.0 - x**4, 1e-3, 1.0) ** 2)

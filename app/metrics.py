@@ -38,8 +38,8 @@ def _gaussian_blur(x: np.ndarray, sigma: float = 1.5, radius: int = 5) -> np.nda
     k = np.exp(-0.5 * (t / sigma) ** 2)
     k /= k.sum()
     pad = np.pad(x, ((radius, radius), (radius, radius)), mode="reflect")
-    rows = sum(k[i] * pad[:, i:i + x.shape[1]] for i in range(2 * radius + 1))
-    return sum(k[i] * rows[i:i + x.shape[0], :] for i in range(2 * radius + 1))
+    rows = sum(k[i] * pad[:, i : i + x.shape[1]] for i in range(2 * radius + 1))
+    return sum(k[i] * rows[i : i + x.shape[0], :] for i in range(2 * radius + 1))
 
 
 def ssim_map(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
@@ -47,13 +47,14 @@ def ssim_map(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
     weights = np.array([0.299, 0.587, 0.114])
     a = _float(reference)[..., :3] @ weights
     b = _float(test)[..., :3] @ weights
-    c1, c2 = 0.01 ** 2, 0.03 ** 2
+    c1, c2 = 0.01**2, 0.03**2
     mu_a, mu_b = _gaussian_blur(a), _gaussian_blur(b)
-    var_a = _gaussian_blur(a * a) - mu_a ** 2
-    var_b = _gaussian_blur(b * b) - mu_b ** 2
+    var_a = _gaussian_blur(a * a) - mu_a**2
+    var_b = _gaussian_blur(b * b) - mu_b**2
     cov = _gaussian_blur(a * b) - mu_a * mu_b
     return ((2 * mu_a * mu_b + c1) * (2 * cov + c2)) / (
-        (mu_a ** 2 + mu_b ** 2 + c1) * (var_a + var_b + c2))
+        (mu_a**2 + mu_b**2 + c1) * (var_a + var_b + c2)
+    )
 
 
 def ssim(reference: np.ndarray, test: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -74,13 +75,20 @@ def flip_map(reference: np.ndarray, test: np.ndarray, ppd: float) -> np.ndarray 
     except ImportError:
         return None
     err, _mean, _params = flip_evaluator.evaluate(
-        _float(reference).astype(np.float32), _float(test).astype(np.float32), "LDR",
-        inputsRGB=True, applyMagma=False, computeMeanError=False, parameters={"ppd": ppd})
+        _float(reference).astype(np.float32),
+        _float(test).astype(np.float32),
+        "LDR",
+        inputsRGB=True,
+        applyMagma=False,
+        computeMeanError=False,
+        parameters={"ppd": ppd},
+    )
     return np.asarray(err, np.float64).reshape(np.shape(reference)[:2])
 
 
-def flip(reference: np.ndarray, test: np.ndarray, ppd: float,
-         mask: np.ndarray | None = None) -> float:
+def flip(
+    reference: np.ndarray, test: np.ndarray, ppd: float, mask: np.ndarray | None = None
+) -> float:
     m = _select(mask, np.shape(reference))
     fm = flip_map(reference, test, ppd)
     if fm is None or not m.any():
@@ -88,15 +96,20 @@ def flip(reference: np.ndarray, test: np.ndarray, ppd: float,
     return float(fm[m].mean())
 
 
-def compare(reference: np.ndarray, test: np.ndarray, ppd: float,
-            mask: np.ndarray | None = None) -> dict[str, float]:
+def compare(
+    reference: np.ndarray, test: np.ndarray, ppd: float, mask: np.ndarray | None = None
+) -> dict[str, float]:
     """PSNR, SSIM and FLIP of ``test`` against ``reference``, optionally inside ``mask``."""
     return compare_regions(reference, test, ppd, {"": mask})[""]
 
 
-def compare_regions(reference: np.ndarray, test: np.ndarray, ppd: float,
-                    masks: dict[str, np.ndarray | None], flip_error: np.ndarray | None = None
-                    ) -> dict[str, dict[str, float]]:
+def compare_regions(
+    reference: np.ndarray,
+    test: np.ndarray,
+    ppd: float,
+    masks: dict[str, np.ndarray | None],
+    flip_error: np.ndarray | None = None,
+) -> dict[str, dict[str, float]]:
     """:func:`compare` for several regions (None: the whole image) of one pair of images,
     computing the SSIM and FLIP maps once (``flip_error``: a FLIP map already computed)."""
     fm = flip_error if flip_error is not None else flip_map(reference, test, ppd)
@@ -104,8 +117,10 @@ def compare_regions(reference: np.ndarray, test: np.ndarray, ppd: float,
     out = {}
     for name, mask in masks.items():
         m = _select(mask, np.shape(reference))
-        out[name] = {"psnr": psnr(reference, test, m),
-                     "ssim": float(sm[m].mean()) if m.any() else math.nan,
-                     "flip": float(fm[m].mean()) if fm is not None and m.any() else math.nan,
-                     "pixels": int(m.sum())}
+        out[name] = {
+            "psnr": psnr(reference, test, m),
+            "ssim": float(sm[m].mean()) if m.any() else math.nan,
+            "flip": float(fm[m].mean()) if fm is not None and m.any() else math.nan,
+            "pixels": int(m.sum()),
+        }
     return out

@@ -83,10 +83,21 @@ class CameraPath:
         return self.sample(self.keys[0].t + max(0, int(n)) * dt)
 
     def to_dict(self) -> dict:
-        return {"vrpreview_path": 1, "scene": self.scene, "keys": [
-            {"t": k.t, "position": list(k.position), "yaw_deg": k.yaw_deg,
-             "pitch_deg": k.pitch_deg, "gaze": list(k.gaze), "gaze_fixed": k.gaze_fixed}
-            for k in self.keys]}
+        return {
+            "vrpreview_path": 1,
+            "scene": self.scene,
+            "keys": [
+                {
+                    "t": k.t,
+                    "position": list(k.position),
+                    "yaw_deg": k.yaw_deg,
+                    "pitch_deg": k.pitch_deg,
+                    "gaze": list(k.gaze),
+                    "gaze_fixed": k.gaze_fixed,
+                }
+                for k in self.keys
+            ],
+        }
 
     def save(self, path: str | os.PathLike[str]) -> None:
         atomic_write_json(path, self.to_dict())
@@ -100,9 +111,14 @@ class CameraPath:
             try:
                 pos = tuple(float(v) for v in k["position"])
                 gaze = tuple(float(v) for v in k.get("gaze", (0.5, 0.5)))
-                key = PathKey(float(k["t"]), pos, float(k.get("yaw_deg", 0.0)),  # type: ignore
-                              float(k.get("pitch_deg", 0.0)), gaze,  # type: ignore[arg-type]
-                              bool(k.get("gaze_fixed", False)))
+                key = PathKey(
+                    float(k["t"]),
+                    pos,
+                    float(k.get("yaw_deg", 0.0)),  # type: ignore
+                    float(k.get("pitch_deg", 0.0)),
+                    gaze,  # type: ignore[arg-type]
+                    bool(k.get("gaze_fixed", False)),
+                )
             except (KeyError, TypeError, ValueError) as exc:
                 raise PathError(f"{origin}: key {i} is malformed ({exc})") from exc
             values = [key.t, *key.position, key.yaw_deg, key.pitch_deg, *key.gaze]
@@ -132,8 +148,9 @@ def builtin_path(name: str) -> CameraPath:
     return CameraPath.from_dict(doc, name)
 
 
-def still_path(position, yaw_deg: float, pitch_deg: float, seconds: float = 2.0,
-               scene: str = "") -> CameraPath:
+def still_path(
+    position, yaw_deg: float, pitch_deg: float, seconds: float = 2.0, scene: str = ""
+) -> CameraPath:
     """A path that stands still at one viewpoint, gaze at the centre (for loaded files)."""
     key = dict(position=tuple(float(v) for v in position), yaw_deg=yaw_deg, pitch_deg=pitch_deg)
     return CameraPath([PathKey(0.0, **key), PathKey(seconds, **key)], scene)

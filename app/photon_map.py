@@ -79,11 +79,16 @@ class PhotonMap:
         return decode_directions(self.direction_bits)
 
     def subset(self, index: np.ndarray) -> PhotonMap:
-        return PhotonMap(self.positions[index], self.power[index], self.direction_bits[index],
-                         self.emitted, self.seed, list(self.notes))
+        return PhotonMap(
+            self.positions[index],
+            self.power[index],
+            self.direction_bits[index],
+            self.emitted,
+            self.seed,
+            list(self.notes),
+        )
 
-    def records(self, order: np.ndarray | None = None, extra: np.ndarray | None = None
-                ) -> bytes:
+    def records(self, order: np.ndarray | None = None, extra: np.ndarray | None = None) -> bytes:
         """The GPU records (see the module docstring), optionally permuted by ``order``."""
         idx = np.arange(len(self)) if order is None else np.asarray(order, np.int64)
         rec = np.zeros((len(idx), 8), np.float32)

@@ -38,8 +38,9 @@ def build_tree(photons: PhotonMap) -> cKDTree:
     return cKDTree(np.asarray(photons.positions, np.float64).reshape(-1, 3))
 
 
-def _inputs(photons: PhotonMap, points: np.ndarray, normals: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _inputs(
+    photons: PhotonMap, points: np.ndarray, normals: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pts = np.asarray(points, np.float64).reshape(-1, 3)
     nrm = np.asarray(normals, np.float64).reshape(-1, 3)
     if pts.shape != nrm.shape:
@@ -53,9 +54,11 @@ def _columns(photons: PhotonMap) -> tuple[list[np.ndarray], list[np.ndarray], li
     pos = np.asarray(photons.positions, np.float64)
     dirs = photons.directions.astype(np.float64)
     power = np.asarray(photons.power, np.float64)
-    return ([np.ascontiguousarray(pos[:, a]) for a in range(3)],
-            [np.ascontiguousarray(dirs[:, a]) for a in range(3)],
-            [np.ascontiguousarray(power[:, a]) for a in range(3)])
+    return (
+        [np.ascontiguousarray(pos[:, a]) for a in range(3)],
+        [np.ascontiguousarray(dirs[:, a]) for a in range(3)],
+        [np.ascontiguousarray(power[:, a]) for a in range(3)],
+    )
 
 
 def _spread_bits(v: np.ndarray) -> np.ndarray:
@@ -73,8 +76,11 @@ def _morton_order(pts: np.ndarray) -> np.ndarray:
     lo = pts.min(axis=0)
     span = float((pts.max(axis=0) - lo).max()) or 1.0
     q = np.clip((pts - lo) / span * 1023.0, 0, 1023)
-    code = _spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << np.uint64(1)) \
+    code = (
+        _spread_bits(q[:, 0])
+        | (_spread_bits(q[:, 1]) << np.uint64(1))
         | (_spread_bits(q[:, 2]) << np.uint64(2))
+    )
     return np.argsort(code, kind="stable")
 
 
@@ -97,8 +103,15 @@ def _chunks(tree: cKDTree, pts: np.ndarray, r: float, workers: int) -> Iterator[
         a += size
 
 
-def estimate_radius(photons: PhotonMap, points: np.ndarray, normals: np.ndarray, r: float, *,
-                    tree: cKDTree | None = None, workers: int = -1) -> np.ndarray:
+def estimate_radius(
+    photons: PhotonMap,
+    points: np.ndarray,
+    normals: np.ndarray,
+    r: float,
+    *,
+    tree: cKDTree | None = None,
+    workers: int = -1,
+) -> np.ndarray:
     """Irradiance E (M, 3) float64 at each point from the photons that count within r.
 
     ``tree`` (from :func:`build_tree` on the same photons) saves rebuilding it between calls;
@@ -115,8 +128,9 @@ def estimate_radius(photons: PhotonMap, points: np.ndarray, normals: np.ndarray,
     qp, qn = pts[rows], nrm[rows]
     r2 = r * r
     for a, b in _chunks(tree, qp, r * _QUERY_SLACK, workers):
-        lists = tree.query_ball_point(qp[a:b], r * _QUERY_SLACK, workers=workers,
-                                      return_sorted=False)
+        lists = tree.query_ball_point(
+            qp[a:b], r * _QUERY_SLACK, workers=workers, return_sorted=False
+        )
         lens = np.fromiter(map(len, lists), np.int64, count=b - a)
         flat = np.fromiter(itertools.chain.from_iterable(lists), np.int64, count=int(lens.sum()))
         pid = np.repeat(np.arange(b - a), lens)
@@ -134,8 +148,16 @@ def estimate_radius(photons: PhotonMap, points: np.ndarray, normals: np.ndarray,
     return out
 
 
-def estimate_knn(photons: PhotonMap, points: np.ndarray, normals: np.ndarray, r: float, k: int,
-                 *, tree: cKDTree | None = None, workers: int = -1) -> np.ndarray:
+def estimate_knn(
+    photons: PhotonMap,
+    points: np.ndarray,
+    normals: np.ndarray,
+    r: float,
+    k: int,
+    *,
+    tree: cKDTree | None = None,
+    workers: int = -1,
+) -> np.ndarray:
     """The k-nearest (max-heap) baseline, (M, 3) float64.
 
     Among the photons that count within r (normal test first), keep the k nearest. With at least
@@ -161,9 +183,10 @@ def estimate_knn(photons: PhotonMap, points: np.ndarray, normals: np.ndarray, r:
         again = []
         step = max(1, _PAIR_BUDGET // want)
         for a in range(0, len(todo), step):
-            rows = todo[a:a + step]
-            dist, idx = tree.query(pts[rows], k=want, distance_upper_bound=r * _QUERY_SLACK,
-                                   workers=workers)
+            rows = todo[a : a + step]
+            dist, idx = tree.query(
+                pts[rows], k=want, distance_upper_bound=r * _QUERY_SLACK, workers=workers
+            )
             dist, idx = dist.reshape(len(rows), want), idx.reshape(len(rows), want)
             found = idx < n
             safe = np.where(found, idx, 0)

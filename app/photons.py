@@ -43,7 +43,7 @@ from app.raycast import RayCaster
 from app.scene import Material, Scene
 
 #: Photon paths traced together: one batched embree call per bounce for this many live rays.
-CHUNK = 2 ** 18
+CHUNK = 2**18
 #: Rec. 709 luminance weights, to share photons between lights by visible power.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: Russian-roulette survival bounds (a bright wall still loses some paths; a dark one keeps a few).
@@ -65,10 +65,16 @@ def scene_scale(scene: Scene) -> float:
     return _diagonal(np.concatenate(pts) if pts else np.zeros((0, 3)))
 
 
-def trace_photons(scene: Scene, count: int, seed: int = 0, *, max_bounces: int = 8,
-                  progress: Callable[[float], None] | None = None,
-                  cancel: Callable[[], bool] | None = None,
-                  caster: RayCaster | None = None) -> PhotonMap:
+def trace_photons(
+    scene: Scene,
+    count: int,
+    seed: int = 0,
+    *,
+    max_bounces: int = 8,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    caster: RayCaster | None = None,
+) -> PhotonMap:
     """Trace ``count`` photon paths from the scene's lights and return the stored photons.
 
     ``max_bounces`` is the number of diffuse reflections a path may make (so at most
@@ -99,8 +105,14 @@ def trace_photons(scene: Scene, count: int, seed: int = 0, *, max_bounces: int =
 
     def done(emitted: int) -> PhotonMap:
         _report(progress, 1.0)
-        return PhotonMap(np.concatenate(out_pos), np.concatenate(out_pow),
-                         np.concatenate(out_dir), emitted, int(seed), notes)
+        return PhotonMap(
+            np.concatenate(out_pos),
+            np.concatenate(out_pow),
+            np.concatenate(out_dir),
+            emitted,
+            int(seed),
+            notes,
+        )
 
     if sources is None or count == 0:
         return done(0 if sources is None else count)
@@ -137,8 +149,14 @@ def trace_photons(scene: Scene, count: int, seed: int = 0, *, max_bounces: int =
                 store = np.ones(len(o), bool)
             ok = np.isfinite(flux).all(axis=1) & (flux.max(axis=1, initial=0.0) > 0.0)
             alive &= ok
-            o, d, flux, dist, tri, store = (o[alive], d[alive], flux[alive], dist[alive],
-                                            tri[alive], store[alive])
+            o, d, flux, dist, tri, store = (
+                o[alive],
+                d[alive],
+                flux[alive],
+                dist[alive],
+                tri[alive],
+                store[alive],
+            )
             p = o + d * dist[:, None]
             if store.any():
                 out_pos.append(p[store].astype(np.float32))
@@ -169,6 +187,7 @@ def _report(progress: Callable[[float], None] | None, fraction: float) -> None:
 
 # -- geometry and materials -------------------------------------------------------------------
 
+
 def _scene_geometry(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Triangles (T, 3, 3) float64 in ``scene.triangles()`` order, owning mesh, mean vertex normal.
 
@@ -184,8 +203,11 @@ def _scene_geometry(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         safe = np.clip(idx, 0, max(len(pos) - 1, 0))
         t = pos[safe] if len(pos) else np.full(idx.shape + (3,), np.nan)
         t[bad] = np.nan
-        normals = np.asarray(m.normals, np.float64).reshape(-1, 3) if m.normals is not None \
+        normals = (
+            np.asarray(m.normals, np.float64).reshape(-1, 3)
+            if m.normals is not None
             else np.zeros((0, 3))
+        )
         if normals.shape[0] == len(pos) and len(pos):
             nv = normals[safe].mean(axis=1)
         else:
@@ -199,8 +221,11 @@ def _scene_geometry(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _caster_matches(caster: RayCaster, tris: np.ndarray) -> bool:
-    return (getattr(caster, "source_index", None) is not None
-            and caster.tri.shape == tris.shape and bool(np.array_equal(caster.tri, tris)))
+    return (
+        getattr(caster, "source_index", None) is not None
+        and caster.tri.shape == tris.shape
+        and bool(np.array_equal(caster.tri, tris))
+    )
 
 
 def _diagonal(points: np.ndarray) -> float:
@@ -224,8 +249,9 @@ class _Geometry:
     offset: float  # ray origin offset off a surface, metres
 
     @staticmethod
-    def build(scene: Scene, caster: RayCaster, mesh: np.ndarray, vnormal: np.ndarray,
-              notes: list[str]) -> _Geometry:
+    def build(
+        scene: Scene, caster: RayCaster, mesh: np.ndarray, vnormal: np.ndarray, notes: list[str]
+    ) -> _Geometry:
         tri = caster.tri
         cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         length = np.linalg.norm(cross, axis=1)
@@ -237,11 +263,13 @@ class _Geometry:
         emissive = emit_m[mesh] if len(mesh) else np.zeros((0, 3))
         with np.errstate(invalid="ignore"):
             cos = np.einsum("ij,ij->i", np.nan_to_num(vnormal, nan=0.0), normal) / np.maximum(
-                np.linalg.norm(np.nan_to_num(vnormal, nan=0.0), axis=1), 1e-20)
+                np.linalg.norm(np.nan_to_num(vnormal, nan=0.0), axis=1), 1e-20
+            )
         front = np.where(cos > FRONT_MIN_COS, 1, np.where(cos < -FRONT_MIN_COS, -1, 0))
         scale = _diagonal(tri.reshape(-1, 3))
-        return _Geometry(tri, normal, area, usable, rho, emissive, front.astype(np.int8),
-                         OFFSET_SCALE * scale)
+        return _Geometry(
+            tri, normal, area, usable, rho, emissive, front.astype(np.int8), OFFSET_SCALE * scale
+        )
 
 
 def _mesh_optics(scene: Scene, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -267,11 +295,17 @@ def _mesh_optics(scene: Scene, notes: list[str]) -> tuple[np.ndarray, np.ndarray
             c = np.asarray(m.colors, np.float64)
             if c.ndim == 2 and c.shape[1] >= 3 and c.shape[0]:
                 with np.errstate(invalid="ignore"):
-                    r = r * _clean(np.nanmean(np.where(np.isfinite(c[:, :3]), c[:, :3], np.nan),
-                                              axis=0), 1.0)
+                    r = r * _clean(
+                        np.nanmean(np.where(np.isfinite(c[:, :3]), c[:, :3], np.nan), axis=0), 1.0
+                    )
         rho[i] = np.clip(r, 0.0, 1.0)
-        emit[i] = np.clip(np.nan_to_num(np.asarray(mat.emissive, np.float64)[:3], nan=0.0,
-                                        posinf=0.0, neginf=0.0), 0.0, 1e6)
+        emit[i] = np.clip(
+            np.nan_to_num(
+                np.asarray(mat.emissive, np.float64)[:3], nan=0.0, posinf=0.0, neginf=0.0
+            ),
+            0.0,
+            1e6,
+        )
     return rho, emit
 
 
@@ -309,6 +343,7 @@ def _texture_mean_linear(rgba: np.ndarray) -> np.ndarray:
 
 # -- lights ------------------------------------------------------------------------------------
 
+
 @dataclass
 class _Sources:
     """Point lights (one source each), then all emissive triangles as one last source."""
@@ -324,8 +359,9 @@ class _Sources:
     def n_point(self) -> int:
         return int(self.position.shape[0])
 
-    def emit(self, src: np.ndarray, per_source: np.ndarray, rng: np.random.Generator,
-             geo: _Geometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def emit(
+        self, src: np.ndarray, per_source: np.ndarray, rng: np.random.Generator, geo: _Geometry
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Origins, directions, flux and first-hit reach (point lights' range) of new paths."""
         m = len(src)
         u = rng.random((m, 6))  # direction (2), triangle, barycentrics (2), side
@@ -351,8 +387,11 @@ class _Sources:
             sq = np.sqrt(u[ar, 3])
             b1, b2 = sq * (1.0 - u[ar, 4]), sq * u[ar, 4]
             tri = geo.tri[t]
-            point = tri[:, 0] + b1[:, None] * (tri[:, 1] - tri[:, 0]) \
+            point = (
+                tri[:, 0]
+                + b1[:, None] * (tri[:, 1] - tri[:, 0])
                 + b2[:, None] * (tri[:, 2] - tri[:, 0])
+            )
             side = geo.front[t].astype(np.float64)
             side = np.where(side == 0, np.where(u[ar, 5] < 0.5, -1.0, 1.0), side)
             n = geo.normal[t] * side[:, None]
@@ -374,8 +413,7 @@ def _light_sources(scene: Scene, geo: _Geometry, notes: list[str]) -> _Sources |
         if p.size < 3 or not np.isfinite(p).all():
             notes.append(f"light {i}: non-finite position, skipped")
             continue
-        if c.size < 3 or not np.isfinite(c).all() or not math.isfinite(inten) \
-                or math.isnan(rng_m):
+        if c.size < 3 or not np.isfinite(c).all() or not math.isfinite(inten) or math.isnan(rng_m):
             notes.append(f"light {i}: non-finite colour, intensity or range, skipped")
             continue
         c = np.clip(c, 0.0, None)
@@ -394,8 +432,14 @@ def _light_sources(scene: Scene, geo: _Geometry, notes: list[str]) -> _Sources |
     if not luma or not np.isfinite(luma).all() or sum(luma) <= 0.0:
         notes.append("no light in the scene emits: empty photon map")
         return None
-    return _Sources(np.reshape(pos, (-1, 3)), np.reshape(flux, (-1, 3)), np.asarray(reach),
-                    area_tri, area_cdf, np.asarray(luma))
+    return _Sources(
+        np.reshape(pos, (-1, 3)),
+        np.reshape(flux, (-1, 3)),
+        np.asarray(reach),
+        area_tri,
+        area_cdf,
+        np.asarray(luma),
+    )
 
 
 def _allocate(power: np.ndarray, count: int) -> np.ndarray:

@@ -53,8 +53,9 @@ def fovea_mask(cps: CpsSettings, frame: FrameInput, eye: int) -> np.ndarray:
         caps = frame.cps_caps[eye]
     else:
         caps = (cps.max_level,) * 3
-    levels = detail_map(view, view.width, view.height, frame.gaze,
-                        dict(zip(("left", "right", "bottom"), caps)), cps)
+    levels = detail_map(
+        view, view.width, view.height, frame.gaze, dict(zip(("left", "right", "bottom"), caps)), cps
+    )
     return levels == 0
 
 
@@ -63,8 +64,13 @@ def stereo_fovea(cps: CpsSettings, frame: FrameInput) -> np.ndarray:
     return np.hstack([np.flipud(fovea_mask(cps, frame, e)) for e in range(2)])
 
 
-def measure(reference: np.ndarray, test: np.ndarray, fovea: np.ndarray | None, ppd: float,
-            regions: dict[str, np.ndarray] | None = None) -> dict:
+def measure(
+    reference: np.ndarray,
+    test: np.ndarray,
+    fovea: np.ndarray | None,
+    ppd: float,
+    regions: dict[str, np.ndarray] | None = None,
+) -> dict:
     """PSNR, SSIM and FLIP for the frame, the fovea and the periphery (``{}`` for an empty
     one; absent without a ``fovea``) and any further ``regions``; the largest foveal
     difference, and the per-pixel error map (FLIP; without flip-evaluator the largest channel
@@ -74,18 +80,20 @@ def measure(reference: np.ndarray, test: np.ndarray, fovea: np.ndarray | None, p
         masks.update(fovea=fovea, periphery=~fovea)
     masks.update(regions or {})
     flip_error = metrics.flip_map(reference, test, ppd)
-    out: dict = {name: r if r["pixels"] else {} for name, r in metrics.compare_regions(
-        reference, test, ppd, masks, flip_error).items()}
+    out: dict = {
+        name: r if r["pixels"] else {}
+        for name, r in metrics.compare_regions(reference, test, ppd, masks, flip_error).items()
+    }
     diff = np.abs(reference.astype(int) - test.astype(int))
-    out["fovea_max_abs_diff"] = (int(diff[fovea].max()) if fovea is not None and fovea.any()
-                                 else None)
+    out["fovea_max_abs_diff"] = (
+        int(diff[fovea].max()) if fovea is not None and fovea.any() else None
+    )
     out["flip_map"] = flip_error if flip_error is not None else diff.max(axis=2) / 255.0
     return out
 
 
 # A short magma-like ramp: black (no error), purple, orange, pale yellow (FLIP 1).
-_RAMP = np.array([[0, 0, 4], [80, 18, 123], [182, 54, 121], [251, 136, 97], [252, 253, 191]],
-                 float)
+_RAMP = np.array([[0, 0, 4], [80, 18, 123], [182, 54, 121], [251, 136, 97], [252, 253, 191]], float)
 
 
 def heat_map(error: np.ndarray, scale: float = 0.25) -> np.ndarray:
@@ -112,6 +120,8 @@ def summary_lines(report: dict) -> list[str]:
             continue
         psnr = r.get("psnr", math.nan)
         psnr_text = "identical" if psnr == math.inf else f"{psnr:.1f} dB"
-        lines.append(f"{region}: PSNR {psnr_text}, SSIM {r.get('ssim', math.nan):.3f}, "
-                     f"FLIP {r.get('flip', math.nan):.3f}")
+        lines.append(
+            f"{region}: PSNR {psnr_text}, SSIM {r.get('ssim', math.nan):.3f}, "
+            f"FLIP {r.get('flip', math.nan):.3f}"
+        )
     return lines

@@ -21,30 +21,36 @@ class RayCaster:
         self.tri = tri[finite]
         # Index of each kept triangle in the input: callers map cast_triangles() answers back.
         self.source_index = np.flatnonzero(finite)
-        self.owner = (np.asarray(owners)[finite] if owners is not None
-                      else np.arange(self.tri.shape[0]))
+        self.owner = (
+            np.asarray(owners)[finite] if owners is not None else np.arange(self.tri.shape[0])
+        )
         self._embree = None
         if self.tri.shape[0]:
             try:
                 import trimesh
                 from trimesh.ray.ray_pyembree import RayMeshIntersector
 
-                mesh = trimesh.Trimesh(vertices=self.tri.reshape(-1, 3),
-                                       faces=np.arange(self.tri.shape[0] * 3).reshape(-1, 3),
-                                       process=False, validate=False)
+                mesh = trimesh.Trimesh(
+                    vertices=self.tri.reshape(-1, 3),
+                    faces=np.arange(self.tri.shape[0] * 3).reshape(-1, 3),
+                    process=False,
+                    validate=False,
+                )
                 self._embree = RayMeshIntersector(mesh, scale_to_box=False)
             except Exception as exc:  # noqa: BLE001 - any import/build failure: use numpy
                 log.info("embree unavailable (%s); using numpy ray casting", exc)
 
-    def cast_many(self, origins, directions, t_max: float = math.inf
-                  ) -> tuple[np.ndarray, np.ndarray]:
+    def cast_many(
+        self, origins, directions, t_max: float = math.inf
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Distances (inf on a miss) and owner ids (-1 on a miss) for each ray."""
         dist, tri = self.cast_triangles(origins, directions, t_max)
         who = np.where(tri >= 0, self.owner[np.maximum(tri, 0)] if len(self.owner) else -1, -1)
         return dist, who.astype(np.int64)
 
-    def cast_triangles(self, origins, directions, t_max: float = math.inf
-                       ) -> tuple[np.ndarray, np.ndarray]:
+    def cast_triangles(
+        self, origins, directions, t_max: float = math.inf
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Distances (inf on a miss) and hit triangle indices into ``self.tri`` (-1 on a miss).
 
         One batched call for many rays (photon tracing); ``self.source_index`` maps a triangle
@@ -91,8 +97,9 @@ class RayCaster:
         return float(dist[0]), int(who[0])
 
 
-def _intersect(o: np.ndarray, d: np.ndarray, v0: np.ndarray, e1: np.ndarray,
-               e2: np.ndarray) -> np.ndarray:
+def _intersect(
+    o: np.ndarray, d: np.ndarray, v0: np.ndarray, e1: np.ndarray, e2: np.ndarray
+) -> np.ndarray:
     """Möller-Trumbore for one ray against many triangles; inf where there is no hit."""
     p = np.cross(d[None, :], e2)
     det = np.einsum("ij,ij->i", e1, p)

@@ -137,8 +137,15 @@ class Scene:
             _finite(sp.yaw_deg, 0.0),
             float(np.clip(_finite(sp.pitch_deg, 0.0), -89.0, 89.0)),
         )
-        return replace(self, meshes=meshes, materials=materials, textures=textures,
-                       lights=lights, spawn=spawn, warnings=notes)
+        return replace(
+            self,
+            meshes=meshes,
+            materials=materials,
+            textures=textures,
+            lights=lights,
+            spawn=spawn,
+            warnings=notes,
+        )
 
 
 def _finite(v: float, fallback: float) -> float:
@@ -187,11 +194,15 @@ def _sanitize_mesh(m: Mesh, n_materials: int, notes: list[str]) -> Mesh | None:
     colors = m.colors
     if colors is not None:
         colors = np.asarray(colors, np.float32).reshape(-1, colors.shape[-1])[:, :3]
-        colors = np.clip(np.where(np.isfinite(colors), colors, 1.0), 0.0, 1.0) \
-            if colors.shape[0] == n else None
+        colors = (
+            np.clip(np.where(np.isfinite(colors), colors, 1.0), 0.0, 1.0)
+            if colors.shape[0] == n
+            else None
+        )
     material = m.material if 0 <= m.material < max(n_materials, 1) else 0
-    return Mesh(m.name, pos, normals.astype(np.float32), uvs, idx.astype(np.uint32), material,
-                colors)
+    return Mesh(
+        m.name, pos, normals.astype(np.float32), uvs, idx.astype(np.uint32), material, colors
+    )
 
 
 def _sanitize_texture(t: Texture, notes: list[str]) -> Texture:
@@ -227,11 +238,14 @@ def _sanitize_material(mat: Material, n_textures: int, notes: list[str]) -> Mate
     if mat.texture is not None and tex is None:
         notes.append(f"material '{mat.name}': texture {mat.texture} missing, colour only")
     base = clean(mat.base_color, 1.0)
-    return Material(mat.name, (min(base[0], 1.0), min(base[1], 1.0), min(base[2], 1.0),
-                               min(base[3], 1.0)),
-                    tex, float(np.clip(_finite(mat.roughness, 0.6), 0.02, 1.0)),
-                    float(np.clip(_finite(mat.metallic, 0.0), 0.0, 1.0)),
-                    clean(mat.emissive, 0.0))  # type: ignore[arg-type]
+    return Material(
+        mat.name,
+        (min(base[0], 1.0), min(base[1], 1.0), min(base[2], 1.0), min(base[3], 1.0)),
+        tex,
+        float(np.clip(_finite(mat.roughness, 0.6), 0.02, 1.0)),
+        float(np.clip(_finite(mat.metallic, 0.0), 0.0, 1.0)),
+        clean(mat.emissive, 0.0),
+    )  # type: ignore[arg-type]
 
 
 def _sanitize_light(light: PointLight) -> PointLight | None:

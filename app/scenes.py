@@ -49,16 +49,24 @@ BUILTIN: dict[str, Callable[[], Scene]] = {
     "tcr-cube": _tcr_cube,
     "corridor": _corridor,
 }
-BUILTIN_PATHS = {"showroom": "showroom_walkthrough", "showroom-100": "showroom_walkthrough",
-                 "showroom-gi": "showroom_walkthrough",
-                 "tcr-cube": "tcr_cube_distance", "corridor": "corridor_walk"}
+BUILTIN_PATHS = {
+    "showroom": "showroom_walkthrough",
+    "showroom-100": "showroom_walkthrough",
+    "showroom-gi": "showroom_walkthrough",
+    "tcr-cube": "tcr_cube_distance",
+    "corridor": "corridor_walk",
+}
 
 
 def _generated_paths() -> dict[str, Callable[[], CameraPath]]:
     from assets import corridor, tcr_cube
 
-    return {"tcr_cube_distance": tcr_cube.distance_path, "tcr_cube_orbit": tcr_cube.orbit_path,
-            "tcr_cube_gaze": tcr_cube.gaze_path, "corridor_walk": corridor.corridor_walk}
+    return {
+        "tcr_cube_distance": tcr_cube.distance_path,
+        "tcr_cube_orbit": tcr_cube.orbit_path,
+        "tcr_cube_gaze": tcr_cube.gaze_path,
+        "corridor_walk": corridor.corridor_walk,
+    }
 
 
 def resolve_path(name_or_file: str | os.PathLike[str]) -> CameraPath:

@@ -57,8 +57,9 @@ class Session:
         n_levels = []
         for mesh in scene.meshes:
             tex = scene.materials[mesh.material].texture
-            n_levels.append(len(pyramid_sizes(*scene.textures[tex].size)) - 1
-                            if tex is not None else 0)
+            n_levels.append(
+                len(pyramid_sizes(*scene.textures[tex].size)) - 1 if tex is not None else 0
+            )
         lo = np.array([m.bounds()[0] for m in scene.meshes]).reshape(-1, 3)
         hi = np.array([m.bounds()[1] for m in scene.meshes]).reshape(-1, 3)
         self.tcr = TcrController(lo, hi, n_levels, [m.name for m in scene.meshes])
@@ -108,9 +109,17 @@ class Session:
         self.gazed = self.gazed_index()
         self.edge = self.edge_caps()
         if self.tcr is not None:
-            self.levels = [int(v) for v in self.tcr.update(
-                self.walker.position, self.gazed, m.viewpoint_moving, m.gaze_fixed,
-                self.settings.render.brightness, t)]
+            self.levels = [
+                int(v)
+                for v in self.tcr.update(
+                    self.walker.position,
+                    self.gazed,
+                    m.viewpoint_moving,
+                    m.gaze_fixed,
+                    self.settings.render.brightness,
+                    t,
+                )
+            ]
 
     def edge_caps(self) -> list:
         """CPS side caps per eye from the edge rays; [] when CPS and its views are off. The
@@ -147,8 +156,14 @@ class Session:
     def current_key(self) -> PathKey:
         """The present pose and gaze as a path key (for recording)."""
         g = self.gaze.state
-        return PathKey(self.time, tuple(float(v) for v in self.walker.position),  # type: ignore
-                       self.walker.yaw_deg, self.walker.pitch_deg, (g.u, g.v), g.fixed)
+        return PathKey(
+            self.time,
+            tuple(float(v) for v in self.walker.position),  # type: ignore
+            self.walker.yaw_deg,
+            self.walker.pitch_deg,
+            (g.u, g.v),
+            g.fixed,
+        )
 
     def frame_input(self, eye_width: int, eye_height: int) -> FrameInput:
         self.eye_size = (max(1, int(eye_width)), max(1, int(eye_height)))
@@ -156,9 +171,14 @@ class Session:
         self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
         g = self.gaze.state
         caps = [(e.caps["left"], e.caps["right"], e.caps["bottom"]) for e in self.edge]
-        return FrameInput(self.camera.eyes(eye_width, eye_height), (g.u, g.v), g.fixed,
-                          self.levels if self.settings.tcr.enabled else None,
-                          caps or None, [e.hits for e in self.edge] or None)
+        return FrameInput(
+            self.camera.eyes(eye_width, eye_height),
+            (g.u, g.v),
+            g.fixed,
+            self.levels if self.settings.tcr.enabled else None,
+            caps or None,
+            [e.hits for e in self.edge] or None,
+        )
 
     # -- queries -------------------------------------------------------------------------------
     def gazed_index(self, eye_width: int = 640, eye_height: int = 720) -> int | None:

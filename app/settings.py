@@ -22,8 +22,14 @@ class SettingsError(ValueError):
     """A key that does not exist, or a value that does not fit its key."""
 
 
-def _opt(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
-         choices: tuple[str, ...] | None = None) -> Any:
+def _opt(
+    default: Any,
+    help: str,
+    *,
+    lo: float | None = None,
+    hi: float | None = None,
+    choices: tuple[str, ...] | None = None,
+) -> Any:
     return field(default=default, metadata={"help": help, "lo": lo, "hi": hi, "choices": choices})
 
 
@@ -33,8 +39,7 @@ class StereoSettings:
     fov_deg: float = _opt(95.0, "vertical field of view per eye (degrees)", lo=30.0, hi=130.0)
     near_m: float = _opt(0.05, "near clipping plane (m)", lo=1e-4, hi=10.0)
     far_m: float = _opt(200.0, "far clipping plane (m)", lo=1.0, hi=1e5)
-    convergence_m: float = _opt(2.0, "distance where the eyes' images coincide (m)", lo=0.1,
-                                hi=1e4)
+    convergence_m: float = _opt(2.0, "distance where the eyes' images coincide (m)", lo=0.1, hi=1e4)
 
 
 @dataclass
@@ -42,12 +47,16 @@ class RenderSettings:
     path: str = _opt("deferred", "rendering path", choices=("deferred", "forward"))
     lighting: str = _opt("compute", "deferred lighting stage", choices=("compute", "fragment"))
     exposure: float = _opt(1.0, "exposure before tone mapping", lo=0.0, hi=64.0)
-    brightness: float = _opt(1.0, "dimmer: scales every light and the ambient (1 = as authored)",
-                             lo=0.0, hi=16.0)
+    brightness: float = _opt(
+        1.0, "dimmer: scales every light and the ambient (1 = as authored)", lo=0.0, hi=16.0
+    )
     ambient: float = _opt(0.06, "constant ambient light", lo=0.0, hi=4.0)
     overlay: bool = _opt(True, "draw the fps overlay in the view")
-    light_culling: bool = _opt(True, "deferred, scenes with more than 8 lights: per 16x16 "
-                               "tile, evaluate only the lights whose range reaches it")
+    light_culling: bool = _opt(
+        True,
+        "deferred, scenes with more than 8 lights: per 16x16 "
+        "tile, evaluate only the lights whose range reaches it",
+    )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(1.0, "anisotropic texture filtering (1 = off)", lo=1.0, hi=16.0)
 
@@ -65,8 +74,9 @@ class NavigationSettings:
 @dataclass
 class GazeSettings:
     dwell: bool = _opt(False, "a cursor held still also fixes the gaze")
-    dwell_deg: float = _opt(1.5, "dwell: largest cursor motion still counted as still (deg)",
-                            lo=0.0, hi=30.0)
+    dwell_deg: float = _opt(
+        1.5, "dwell: largest cursor motion still counted as still (deg)", lo=0.0, hi=30.0
+    )
     dwell_s: float = _opt(0.4, "dwell: how long the cursor must stay still (s)", lo=0.0, hi=10.0)
 
 
@@ -75,16 +85,23 @@ class TcrSettings:
     """Adaptive texture mapping (TCR paper): which terms choose each object's pyramid level."""
 
     enabled: bool = _opt(False, "adapt texture levels per object (off: full quality)")
-    preset: str = _opt("ergonomics", "term set: psychology (d,g,l), ergonomics (d,v,l) or custom",
-                       choices=("psychology", "ergonomics", "custom"))
+    preset: str = _opt(
+        "ergonomics",
+        "term set: psychology (d,g,l), ergonomics (d,v,l) or custom",
+        choices=("psychology", "ergonomics", "custom"),
+    )
     use_d: bool = _opt(True, "custom: distance term d")
     use_v: bool = _opt(True, "custom: viewpoint-motion term v (+1 while moving)")
     use_g: bool = _opt(False, "custom: gaze term g (-1 on the gazed object while fixed)")
     use_l: bool = _opt(True, "custom: brightness term l (+1 per halving)")
-    mode: str = _opt("clamp", "paper: sample exactly level j; clamp: mipmapping, finest level j",
-                     choices=("paper", "clamp"))
-    f_m: float = _opt(1.0, "eye-to-screen distance f in j = floor(log2((d+f)/f)) (m)",
-                      lo=1e-6, hi=100.0)
+    mode: str = _opt(
+        "clamp",
+        "paper: sample exactly level j; clamp: mipmapping, finest level j",
+        choices=("paper", "clamp"),
+    )
+    f_m: float = _opt(
+        1.0, "eye-to-screen distance f in j = floor(log2((d+f)/f)) (m)", lo=1e-6, hi=100.0
+    )
     move_on: float = _opt(0.15, "viewpoint counts as moving above this speed", lo=0.0, hi=100.0)
     move_off: float = _opt(0.05, "... and as still again below this speed", lo=0.0, hi=100.0)
     window_s: float = _opt(0.15, "a state change must persist this long (s)", lo=0.0, hi=5.0)
@@ -95,63 +112,114 @@ class TcrSettings:
 class CpsSettings:
     """Coarse pixel shading against VR sickness (CPS paper, SPEC C) and the mitigation modes."""
 
-    mode: str = _opt("none", "mitigation: none (full-rate lighting), black-mask or blur-mask "
-                     "(periphery darkened / blurred where detail would drop) or cps (coarse "
-                     "shading there); the lighting runs where render.lighting says (compute "
-                     "is the paper's, fragment keeps it in the graphics pipeline); deferred "
-                     "path only", choices=("none", "black-mask", "blur-mask", "cps"))
+    mode: str = _opt(
+        "none",
+        "mitigation: none (full-rate lighting), black-mask or blur-mask "
+        "(periphery darkened / blurred where detail would drop) or cps (coarse "
+        "shading there); the lighting runs where render.lighting says (compute "
+        "is the paper's, fragment keeps it in the graphics pipeline); deferred "
+        "path only",
+        choices=("none", "black-mask", "blur-mask", "cps"),
+    )
     max_level: int = _opt(4, "coarsest block allowed: 2^max_level pixels square (0-5)", lo=0, hi=5)
-    fovea_deg: float = _opt(10.0, "full detail within this angle of the gaze (degrees)",
-                            lo=0.0, hi=180.0)
-    deg_per_level: float = _opt(6.0, "falloff: one level coarser per this many degrees "
-                                "beyond the fovea", lo=0.1, hi=180.0)
-    near_m: float = _opt(1.0, "edge ray hit this near or nearer: that side may go to max_level "
-                         "(m)", lo=0.0, hi=1000.0)
-    far_m: float = _opt(6.0, "edge ray hit this far or farther (or none): no reduction on that "
-                        "side (m)", lo=0.0, hi=1000.0)
+    fovea_deg: float = _opt(
+        10.0, "full detail within this angle of the gaze (degrees)", lo=0.0, hi=180.0
+    )
+    deg_per_level: float = _opt(
+        6.0, "falloff: one level coarser per this many degrees beyond the fovea", lo=0.1, hi=180.0
+    )
+    near_m: float = _opt(
+        1.0,
+        "edge ray hit this near or nearer: that side may go to max_level (m)",
+        lo=0.0,
+        hi=1000.0,
+    )
+    far_m: float = _opt(
+        6.0,
+        "edge ray hit this far or farther (or none): no reduction on that side (m)",
+        lo=0.0,
+        hi=1000.0,
+    )
     rays_per_side: int = _opt(5, "edge rays per side (left, right, bottom) and eye", lo=1, hi=64)
-    dispatch: str = _opt("multi", "compute: one dispatch per level (multi) or one in which a "
-                         "thread owns a 32x32 tile (single)", choices=("multi", "single"))
-    filter: str = _opt("hierarchical", "reconstruction of coarse blocks: none, bilinear "
-                       "(ordinary) or hierarchical (the paper's)",
-                       choices=("none", "bilinear", "hierarchical"))
-    temporal: bool = _opt(False, "alternating temporal filter: the eyes swap strong and weak "
-                          "reduction each frame and blend with their previous frame")
-    reproject: bool = _opt(True, "temporal: reproject the history with depth and the previous "
-                           "camera, rejecting disocclusions")
-    history_weight: float = _opt(0.7, "temporal: weight of the finer of the two images when "
-                                 "blending (0.5-1)", lo=0.5, hi=1.0)
-    visualize: bool = _opt(False, "tint pixels by detail level (finest unpainted, then blue, "
-                           "cyan, green, yellow, red) and mark the edge-ray hits")
+    dispatch: str = _opt(
+        "multi",
+        "compute: one dispatch per level (multi) or one in which a "
+        "thread owns a 32x32 tile (single)",
+        choices=("multi", "single"),
+    )
+    filter: str = _opt(
+        "hierarchical",
+        "reconstruction of coarse blocks: none, bilinear (ordinary) or hierarchical (the paper's)",
+        choices=("none", "bilinear", "hierarchical"),
+    )
+    temporal: bool = _opt(
+        False,
+        "alternating temporal filter: the eyes swap strong and weak "
+        "reduction each frame and blend with their previous frame",
+    )
+    reproject: bool = _opt(
+        True,
+        "temporal: reproject the history with depth and the previous "
+        "camera, rejecting disocclusions",
+    )
+    history_weight: float = _opt(
+        0.7, "temporal: weight of the finer of the two images when blending (0.5-1)", lo=0.5, hi=1.0
+    )
+    visualize: bool = _opt(
+        False,
+        "tint pixels by detail level (finest unpainted, then blue, "
+        "cyan, green, yellow, red) and mark the edge-ray hits",
+    )
 
 
 @dataclass
 class PhotonSettings:
     """Photon-mapped indirect light (SPEC D): traced on the CPU, gathered on the GPU."""
 
-    enabled: str = _opt("scene", "indirect light from a photon map: scene (only where the scene "
-                        "asks for it), on or off", choices=("scene", "on", "off"))
-    photons: int = _opt(65536, "photon paths emitted from the lights (the paper: 128^2 = 16384, "
-                        "256^2 = 65536, 512^2 = 262144)", lo=0, hi=1 << 22)
+    enabled: str = _opt(
+        "scene",
+        "indirect light from a photon map: scene (only where the scene asks for it), on or off",
+        choices=("scene", "on", "off"),
+    )
+    photons: int = _opt(
+        65536,
+        "photon paths emitted from the lights (the paper: 128^2 = 16384, "
+        "256^2 = 65536, 512^2 = 262144)",
+        lo=0,
+        hi=1 << 22,
+    )
     radius_m: float = _opt(0.3, "gather radius r (m)", lo=1e-3, hi=100.0)
-    gather: str = _opt("radius", "radius (hash grid, cell r, no heap: the paper's default), "
-                       "radius-half (cell r/2, 5x5x5), heap (k nearest), kdtree, kdtree-heap, "
-                       "shared (cooperative shared-memory gather, paper Algorithm 1)",
-                       choices=("radius", "radius-half", "heap", "kdtree", "kdtree-heap",
-                                "shared"))
+    gather: str = _opt(
+        "radius",
+        "radius (hash grid, cell r, no heap: the paper's default), "
+        "radius-half (cell r/2, 5x5x5), heap (k nearest), kdtree, kdtree-heap, "
+        "shared (cooperative shared-memory gather, paper Algorithm 1)",
+        choices=("radius", "radius-half", "heap", "kdtree", "kdtree-heap", "shared"),
+    )
     k: int = _opt(32, "heap variants: nearest photons kept", lo=1, hi=64)
-    fused: bool = _opt(False, "gather inside the lighting shader (one kernel: the paper's "
-                       "'single' scheme, no stereo reuse; shared gathers as radius there) "
-                       "instead of a separate pass before it (its 'hybrid' scheme)")
-    stereo_reuse: bool = _opt(True, "gather the left eye first and reuse its results at the "
-                              "right-eye pixels that see the same points")
-    reuse_tolerance: float = _opt(0.01, "stereo reuse: largest distance between the left hit "
-                                  "and the right pixel's point, relative to its depth",
-                                  lo=0.0, hi=1.0)
+    fused: bool = _opt(
+        False,
+        "gather inside the lighting shader (one kernel: the paper's "
+        "'single' scheme, no stereo reuse; shared gathers as radius there) "
+        "instead of a separate pass before it (its 'hybrid' scheme)",
+    )
+    stereo_reuse: bool = _opt(
+        True,
+        "gather the left eye first and reuse its results at the "
+        "right-eye pixels that see the same points",
+    )
+    reuse_tolerance: float = _opt(
+        0.01,
+        "stereo reuse: largest distance between the left hit "
+        "and the right pixel's point, relative to its depth",
+        lo=0.0,
+        hi=1.0,
+    )
     max_bounces: int = _opt(8, "longest photon path (bounces)", lo=1, hi=64)
     seed: int = _opt(0, "random seed of the photon tracer", lo=0, hi=2**31 - 1)
-    show_reuse: bool = _opt(False, "paint right-eye pixels reused from the left eye green and "
-                            "gathered ones red")
+    show_reuse: bool = _opt(
+        False, "paint right-eye pixels reused from the left eye green and gathered ones red"
+    )
 
 
 @dataclass

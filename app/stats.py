@@ -32,13 +32,16 @@ class FrameTimer:
         return 1.0 / mean if mean > 0 else 0.0
 
 
-def overlay_lines(fps: float, pass_ms: dict[str, float], settings: Settings,
-                  gaze_fixed: bool) -> list[str]:
+def overlay_lines(
+    fps: float, pass_ms: dict[str, float], settings: Settings, gaze_fixed: bool
+) -> list[str]:
     r = settings.render
     path = f"deferred ({r.lighting})" if r.path == "deferred" else "forward"
     passes = "  ".join(f"{k} {v:.1f}" for k, v in pass_ms.items() if v > 0.05)
-    return [f"{fps:5.1f} fps   {path}   gaze {'fixed' if gaze_fixed else 'moving'}",
-            f"GPU ms: {passes}"]
+    return [
+        f"{fps:5.1f} fps   {path}   gaze {'fixed' if gaze_fixed else 'moving'}",
+        f"GPU ms: {passes}",
+    ]
 
 
 def summarize(values: list[float]) -> dict[str, float]:
@@ -46,6 +49,9 @@ def summarize(values: list[float]) -> dict[str, float]:
     if not values:
         return {"median": 0.0, "p95": 0.0, "mean": 0.0}
     a = np.asarray(values, np.float64)
-    out = {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)),
-           "mean": float(a.mean())}
+    out = {
+        "median": float(np.median(a)),
+        "p95": float(np.percentile(a, 95)),
+        "mean": float(a.mean()),
+    }
     return {k: (v if math.isfinite(v) else 0.0) for k, v in out.items()}

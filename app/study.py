@@ -44,19 +44,33 @@ class Matrix:
 def _cps_matrix() -> Matrix:
     runs: list[tuple[str, tuple[str, ...]]] = [(FULL, ("cps.mode=none",))]
     runs += [("black-mask", ("cps.mode=black-mask",)), ("blur-mask", ("cps.mode=blur-mask",))]
-    for level, filt, temporal in itertools.product((2, 3, 4, 5), ("none", "hierarchical"),
-                                                   (False, True)):
+    for level, filt, temporal in itertools.product(
+        (2, 3, 4, 5), ("none", "hierarchical"), (False, True)
+    ):
         name = f"cps-block{1 << level}-{filt}" + ("-temporal" if temporal else "")
-        runs.append((name, ("cps.mode=cps", f"cps.max_level={level}", f"cps.filter={filt}",
-                            f"cps.temporal={str(temporal).lower()}")))
+        runs.append(
+            (
+                name,
+                (
+                    "cps.mode=cps",
+                    f"cps.max_level={level}",
+                    f"cps.filter={filt}",
+                    f"cps.temporal={str(temporal).lower()}",
+                ),
+            )
+        )
     return Matrix("corridor", "corridor_walk", runs)
 
 
 def _tcr_matrix() -> Matrix:
     runs: list[tuple[str, tuple[str, ...]]] = [(FULL, ("tcr.enabled=false",))]
     for preset, mode in itertools.product(("ergonomics", "psychology"), ("clamp", "paper")):
-        runs.append((f"tcr-{preset}-{mode}", ("tcr.enabled=true", f"tcr.preset={preset}",
-                                              f"tcr.mode={mode}")))
+        runs.append(
+            (
+                f"tcr-{preset}-{mode}",
+                ("tcr.enabled=true", f"tcr.preset={preset}", f"tcr.mode={mode}"),
+            )
+        )
     return Matrix("showroom", "showroom_walkthrough", runs, stride=10, compare_every=3)
 
 
@@ -67,39 +81,83 @@ def _photon_matrix() -> Matrix:
     from app.photon_bench import COUNTS, radius_m
 
     base = ("photons.enabled=on", "photons.stereo_reuse=true")
-    runs: list[tuple[str, tuple[str, ...]]] = [(FULL, (*base, "photons.photons=4194304",
-                                                       "photons.radius_m=0.1",
-                                                       "photons.stereo_reuse=false"))]
+    runs: list[tuple[str, tuple[str, ...]]] = [
+        (
+            FULL,
+            (
+                *base,
+                "photons.photons=4194304",
+                "photons.radius_m=0.1",
+                "photons.stereo_reuse=false",
+            ),
+        )
+    ]
     for (label, count), rho in itertools.product(COUNTS.items(), (0.05, 0.1, 0.2)):
-        runs.append((f"photons-{label.replace('^', 'p')}-r{radius_m(rho):g}",
-                     (*base, f"photons.photons={count}", f"photons.radius_m={radius_m(rho)}")))
-    runs.append(("photons-256p2-r0.2-cps", (*base, "photons.photons=65536",
-                                             "photons.radius_m=0.2", "cps.mode=cps")))
+        runs.append(
+            (
+                f"photons-{label.replace('^', 'p')}-r{radius_m(rho):g}",
+                (*base, f"photons.photons={count}", f"photons.radius_m={radius_m(rho)}"),
+            )
+        )
+    runs.append(
+        (
+            "photons-256p2-r0.2-cps",
+            (*base, "photons.photons=65536", "photons.radius_m=0.2", "cps.mode=cps"),
+        )
+    )
     return Matrix("showroom", "showroom_walkthrough", runs, stride=150, compare_every=1)
 
 
-MATRICES: dict[str, Callable[[], Matrix]] = {"cps": _cps_matrix, "tcr": _tcr_matrix,
-                                             "photons": _photon_matrix}
+MATRICES: dict[str, Callable[[], Matrix]] = {
+    "cps": _cps_matrix,
+    "tcr": _tcr_matrix,
+    "photons": _photon_matrix,
+}
 
-FIELDS = ("name", "settings", "frames", "fps", "frame_ms", "p95_ms", "speedup", "psnr_db",
-          "ssim", "flip", "fovea_psnr_db", "fovea_max_diff", "periphery_psnr_db",
-          "periphery_ssim", "periphery_flip", "resident_mb", "shaded_samples")
+FIELDS = (
+    "name",
+    "settings",
+    "frames",
+    "fps",
+    "frame_ms",
+    "p95_ms",
+    "speedup",
+    "psnr_db",
+    "ssim",
+    "flip",
+    "fovea_psnr_db",
+    "fovea_max_diff",
+    "periphery_psnr_db",
+    "periphery_ssim",
+    "periphery_flip",
+    "resident_mb",
+    "shaded_samples",
+)
 
 
 def row_from(name: str, sets: tuple[str, ...], result: dict) -> dict:
     err = result.get("error_vs_full_quality") or {}
     frame = err.get("frame", {})
     fovea, periphery = err.get("fovea", {}), err.get("periphery", {})
-    return {"name": name, "settings": " ".join(sets), "frames": result["frames"],
-            "fps": result["fps_median"], "frame_ms": result["frame_ms"]["median"],
-            "p95_ms": result["frame_ms"]["p95"], "speedup": None,
-            "psnr_db": frame.get("psnr_db"), "ssim": frame.get("ssim"),
-            "flip": frame.get("flip"), "fovea_psnr_db": fovea.get("psnr_db"),
-            "fovea_max_diff": err.get("fovea_max_abs_diff"),
-            "periphery_psnr_db": periphery.get("psnr_db"),
-            "periphery_ssim": periphery.get("ssim"), "periphery_flip": periphery.get("flip"),
-            "resident_mb": result["texture_resident_bytes"] / 1e6,
-            "shaded_samples": result["shaded_samples"]}
+    return {
+        "name": name,
+        "settings": " ".join(sets),
+        "frames": result["frames"],
+        "fps": result["fps_median"],
+        "frame_ms": result["frame_ms"]["median"],
+        "p95_ms": result["frame_ms"]["p95"],
+        "speedup": None,
+        "psnr_db": frame.get("psnr_db"),
+        "ssim": frame.get("ssim"),
+        "flip": frame.get("flip"),
+        "fovea_psnr_db": fovea.get("psnr_db"),
+        "fovea_max_diff": err.get("fovea_max_abs_diff"),
+        "periphery_psnr_db": periphery.get("psnr_db"),
+        "periphery_ssim": periphery.get("ssim"),
+        "periphery_flip": periphery.get("flip"),
+        "resident_mb": result["texture_resident_bytes"] / 1e6,
+        "shaded_samples": result["shaded_samples"],
+    }
 
 
 def pareto(rows: list[dict], cost: str = "frame_ms", error: str = "flip") -> list[str]:
@@ -107,8 +165,12 @@ def pareto(rows: list[dict], cost: str = "frame_ms", error: str = "flip") -> lis
     ok = [r for r in rows if _finite(r.get(cost)) and _finite(r.get(error))]
     front = []
     for r in ok:
-        dominated = any(o[cost] <= r[cost] and o[error] <= r[error]
-                        and (o[cost] < r[cost] or o[error] < r[error]) for o in ok)
+        dominated = any(
+            o[cost] <= r[cost]
+            and o[error] <= r[error]
+            and (o[cost] < r[cost] or o[error] < r[error])
+            for o in ok
+        )
         if not dominated:
             front.append(r["name"])
     return sorted(front, key=lambda n: next(r[cost] for r in ok if r["name"] == n))
@@ -118,9 +180,13 @@ def _finite(v: object) -> bool:
     return isinstance(v, (int, float)) and math.isfinite(v)
 
 
-def run_study(which: str, out_dir: str | Path, size: str = "1280x720",
-              progress: Callable[[int, int, str], None] | None = None,
-              matrix: Matrix | None = None) -> list[dict]:
+def run_study(
+    which: str,
+    out_dir: str | Path,
+    size: str = "1280x720",
+    progress: Callable[[int, int, str], None] | None = None,
+    matrix: Matrix | None = None,
+) -> list[dict]:
     """Run (or resume) a study; ``matrix`` overrides the built-in one named ``which``."""
     matrix = matrix or MATRICES[which]()
     out = Path(out_dir)
@@ -139,17 +205,43 @@ def run_study(which: str, out_dir: str | Path, size: str = "1280x720",
             continue
         settings = Settings()
         settings.apply(list(sets))
-        result = bench(matrix.scene, parse_size(size), matrix.frames, settings, 3,
-                       resolve_path(matrix.path), None, matrix.compare_every, matrix.stride)
+        result = bench(
+            matrix.scene,
+            parse_size(size),
+            matrix.frames,
+            settings,
+            3,
+            resolve_path(matrix.path),
+            None,
+            matrix.compare_every,
+            matrix.stride,
+        )
         rows.append(row_from(name, sets, result))
-        atomic_write_json(results_file, {"study": which, "scene": matrix.scene,
-                                         "path": matrix.path, "size": size, "rows": rows})
+        atomic_write_json(
+            results_file,
+            {
+                "study": which,
+                "scene": matrix.scene,
+                "path": matrix.path,
+                "size": size,
+                "rows": rows,
+            },
+        )
     full = next((r for r in rows if r["name"] == FULL), None)
     for r in rows:
         r["speedup"] = full["frame_ms"] / r["frame_ms"] if full and r["frame_ms"] else None
     front = pareto(rows)
-    atomic_write_json(results_file, {"study": which, "scene": matrix.scene, "path": matrix.path,
-                                     "size": size, "rows": rows, "pareto": front})
+    atomic_write_json(
+        results_file,
+        {
+            "study": which,
+            "scene": matrix.scene,
+            "path": matrix.path,
+            "size": size,
+            "rows": rows,
+            "pareto": front,
+        },
+    )
     atomic_write_text(out / "results.csv", to_csv(rows))
     atomic_write_text(out / "report.md", to_markdown(which, matrix, rows, front))
     atomic_write_png(out / "pareto.png", plot(rows, front, f"{which}: {matrix.scene}"))
@@ -172,23 +264,48 @@ def _fmt(v: object, spec: str) -> str:
 
 
 def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) -> str:
-    header = ("run", "fps", "frame ms", "speed-up", "PSNR dB", "SSIM", "FLIP",
-              "fovea max diff", "periphery PSNR dB", "periphery FLIP", "samples")
-    table = [[r["name"] + (" *" if r["name"] in front else ""), _fmt(r["fps"], ".2f"),
-              _fmt(r["frame_ms"], ".1f"), _fmt(r["speedup"], ".2f"), _fmt(r["psnr_db"], ".1f"),
-              _fmt(r["ssim"], ".4f"), _fmt(r["flip"], ".4f"),
-              "-" if r["fovea_max_diff"] is None else str(r["fovea_max_diff"]),
-              _fmt(r["periphery_psnr_db"], ".1f"), _fmt(r["periphery_flip"], ".4f"),
-              str(r["shaded_samples"])] for r in rows]
-    return (f"# Study `{which}`: {matrix.scene}, path {matrix.path}\n\n"
-            f"One frame in {matrix.stride} of the path, one in {matrix.compare_every} of those "
-            "compared with the same frame at full quality (finest textures, full-rate "
-            "lighting, no mask; indirect light from a converged photon map: 4M paths at "
-            "r = 10 cm, each eye gathered); errors on display values. Fovea: pixels CPS keeps "
-            "at full rate (without CPS: the same angle around the gaze); periphery: the rest. "
-            "`*`: on the Pareto front of frame time against FLIP.\n\n"
-            + markdown(header, table) + "\n\nPareto front (fastest first): "
-            + ", ".join(front) + "\n")
+    header = (
+        "run",
+        "fps",
+        "frame ms",
+        "speed-up",
+        "PSNR dB",
+        "SSIM",
+        "FLIP",
+        "fovea max diff",
+        "periphery PSNR dB",
+        "periphery FLIP",
+        "samples",
+    )
+    table = [
+        [
+            r["name"] + (" *" if r["name"] in front else ""),
+            _fmt(r["fps"], ".2f"),
+            _fmt(r["frame_ms"], ".1f"),
+            _fmt(r["speedup"], ".2f"),
+            _fmt(r["psnr_db"], ".1f"),
+            _fmt(r["ssim"], ".4f"),
+            _fmt(r["flip"], ".4f"),
+            "-" if r["fovea_max_diff"] is None else str(r["fovea_max_diff"]),
+            _fmt(r["periphery_psnr_db"], ".1f"),
+            _fmt(r["periphery_flip"], ".4f"),
+            str(r["shaded_samples"]),
+        ]
+        for r in rows
+    ]
+    return (
+        f"# Study `{which}`: {matrix.scene}, path {matrix.path}\n\n"
+        f"One frame in {matrix.stride} of the path, one in {matrix.compare_every} of those "
+        "compared with the same frame at full quality (finest textures, full-rate "
+        "lighting, no mask; indirect light from a converged photon map: 4M paths at "
+        "r = 10 cm, each eye gathered); errors on display values. Fovea: pixels CPS keeps "
+        "at full rate (without CPS: the same angle around the gaze); periphery: the rest. "
+        "`*`: on the Pareto front of frame time against FLIP.\n\n"
+        + markdown(header, table)
+        + "\n\nPareto front (fastest first): "
+        + ", ".join(front)
+        + "\n"
+    )
 
 
 def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.ndarray:
@@ -210,8 +327,10 @@ def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.
     y0, y1 = 0.0, max(max(ys) * 1.1, 1e-3)
 
     def to_px(x: float, y: float) -> tuple[float, float]:
-        return (left + (x - x0) / (x1 - x0) * (right - left),
-                bottom - (y - y0) / (y1 - y0) * (bottom - top))
+        return (
+            left + (x - x0) / (x1 - x0) * (right - left),
+            bottom - (y - y0) / (y1 - y0) * (bottom - top),
+        )
 
     for k in range(5):  # axis ticks
         x = x0 + (x1 - x0) * k / 4
@@ -236,7 +355,11 @@ def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.
 def print_progress(done: int, total: int, name: str) -> None:
     width = 30
     filled = round(width * (done - 1) / max(1, total))
-    print(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name:<40}", end="",
-          file=sys.stderr, flush=True)
+    print(
+        f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name:<40}",
+        end="",
+        file=sys.stderr,
+        flush=True,
+    )
     if done == total:
         print(file=sys.stderr)

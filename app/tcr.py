@@ -126,8 +126,9 @@ def _encode(linear: np.ndarray) -> np.ndarray:
     """float linear RGB + alpha -> uint8 sRGB RGBA (round to nearest)."""
     x = np.clip(linear, 0.0, 1.0)
     rgb = x[..., :3]
-    srgb = np.where(rgb <= 0.0031308, rgb * 12.92,
-                    1.055 * np.power(rgb, 1.0 / 2.4, dtype=np.float32) - 0.055)
+    srgb = np.where(
+        rgb <= 0.0031308, rgb * 12.92, 1.055 * np.power(rgb, 1.0 / 2.4, dtype=np.float32) - 0.055
+    )
     out = np.empty(linear.shape, np.uint8)
     out[..., :3] = np.rint(np.clip(srgb, 0.0, 1.0) * 255.0)
     out[..., 3] = np.rint(x[..., 3] * 255.0)
@@ -293,13 +294,23 @@ class LevelReason:
 
     def describe(self, name: str) -> str:
         """``"sofa: level 4 = distance 3 + v 1 - g 0 + l 0, clamped to [0, 9]"``."""
-        return (f"{name}: level {self.level} = distance {self.distance} + v {self.v} "
-                f"- g {-self.g} + l {self.l}, clamped to [0, {self.n}]")
+        return (
+            f"{name}: level {self.level} = distance {self.distance} + v {self.v} "
+            f"- g {-self.g} + l {self.l}, clamped to [0, {self.n}]"
+        )
 
 
-def level_for(distance_m: float, f_m: float, n: int, *, moving: bool, gazed_fixed: bool,
-              brightness: float, terms: TcrTerms,
-              reference_brightness: float = 1.0) -> LevelReason:
+def level_for(
+    distance_m: float,
+    f_m: float,
+    n: int,
+    *,
+    moving: bool,
+    gazed_fixed: bool,
+    brightness: float,
+    terms: TcrTerms,
+    reference_brightness: float = 1.0,
+) -> LevelReason:
     """The pyramid level for one object, with each term's share.
 
     ``moving`` is the viewpoint state, ``gazed_fixed`` whether *this* object is under a fixed
@@ -313,8 +324,7 @@ def level_for(distance_m: float, f_m: float, n: int, *, moving: bool, gazed_fixe
     g = -1 if terms.g and gazed_fixed else 0
     lum = brightness_term(brightness, reference_brightness) if terms.l else 0
     raw = dist + v + g + lum
-    return LevelReason(distance=dist, v=v, g=g, l=lum, raw=raw, level=min(max(raw, 0), top),
-                       n=top)
+    return LevelReason(distance=dist, v=v, g=g, l=lum, raw=raw, level=min(max(raw, 0), top), n=top)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -342,8 +352,9 @@ class MotionStateMachine:
     mouse button or dwell, already debounced by :class:`app.gaze.GazeModel`) and applies at once.
     """
 
-    def __init__(self, move_on: float = 0.15, move_off: float = 0.05,
-                 window_s: float = 0.15) -> None:
+    def __init__(
+        self, move_on: float = 0.15, move_off: float = 0.05, window_s: float = 0.15
+    ) -> None:
         self.move_on, self.move_off, self.window_s = 0.15, 0.05, 0.15
         self.configure(move_on, move_off, window_s)
         self.viewpoint_moving = False
@@ -416,14 +427,17 @@ class TcrController:
     user counts as near, so it is never shown coarser than its nearest part needs.
     """
 
-    def __init__(self, boxes_lo: np.ndarray, boxes_hi: np.ndarray, n_levels: list[int],
-                 names: list[str]) -> None:
+    def __init__(
+        self, boxes_lo: np.ndarray, boxes_hi: np.ndarray, n_levels: list[int], names: list[str]
+    ) -> None:
         lo = np.asarray(boxes_lo, np.float64).reshape(-1, 3)
         hi = np.asarray(boxes_hi, np.float64).reshape(-1, 3)
         count = lo.shape[0]
         if hi.shape[0] != count or len(n_levels) != count or len(names) != count:
-            raise ValueError(f"boxes_lo ({count}), boxes_hi ({hi.shape[0]}), n_levels "
-                             f"({len(n_levels)}) and names ({len(names)}) must match")
+            raise ValueError(
+                f"boxes_lo ({count}), boxes_hi ({hi.shape[0]}), n_levels "
+                f"({len(n_levels)}) and names ({len(names)}) must match"
+            )
         # A box given with lo > hi on some axis is the same box; NaN corners stay NaN and give
         # a NaN distance, i.e. the finest level.
         self.lo = np.minimum(lo, hi)
@@ -432,8 +446,7 @@ class TcrController:
         self.names = list(names)
         self.levels = np.zeros(count, np.int32)
         self.distances = np.zeros(count, np.float64)
-        self.reasons: list[LevelReason] = [
-            LevelReason(0, 0, 0, 0, 0, 0, n) for n in self.n_levels]
+        self.reasons: list[LevelReason] = [LevelReason(0, 0, 0, 0, 0, 0, n) for n in self.n_levels]
 
     def box_distances(self, eye: np.ndarray) -> np.ndarray:
         """Eye to the nearest point of each box (0 inside); NaN where eye or box is NaN.
@@ -447,8 +460,15 @@ class TcrController:
             # np.maximum propagates NaN, so a NaN eye or corner gives a NaN distance.
             return np.hypot(np.hypot(gap[:, 0], gap[:, 1]), gap[:, 2])
 
-    def update(self, eye: np.ndarray, gazed: int | None, moving: bool, gaze_fixed: bool,
-               brightness: float, settings: TcrSettings) -> np.ndarray:
+    def update(
+        self,
+        eye: np.ndarray,
+        gazed: int | None,
+        moving: bool,
+        gaze_fixed: bool,
+        brightness: float,
+        settings: TcrSettings,
+    ) -> np.ndarray:
         """This frame's level (int32) per object; :attr:`reasons` says why.
 
         With ``settings.enabled`` False every level is 0 (full quality) and every reason is
@@ -464,16 +484,24 @@ class TcrController:
         terms = terms_from_settings(settings)
         target = gazed if gaze_fixed and gazed is not None and 0 <= gazed < count else -1
         self.reasons = [
-            level_for(float(self.distances[i]), settings.f_m, self.n_levels[i], moving=moving,
-                      gazed_fixed=i == target, brightness=brightness, terms=terms)
+            level_for(
+                float(self.distances[i]),
+                settings.f_m,
+                self.n_levels[i],
+                moving=moving,
+                gazed_fixed=i == target,
+                brightness=brightness,
+                terms=terms,
+            )
             for i in range(count)
         ]
         self.levels = np.fromiter((r.level for r in self.reasons), np.int32, count)
         return self.levels.copy()
 
 
-def finest_per_texture(levels: list[int] | np.ndarray, texture_of_object: list[int | None],
-                       n_textures: int) -> list[int]:
+def finest_per_texture(
+    levels: list[int] | np.ndarray, texture_of_object: list[int | None], n_textures: int
+) -> list[int]:
     """The finest (smallest) level any object uses, per texture; -1 if no object uses it.
 
     "Unused" is -1 rather than a guessed level because what to do with a texture no object

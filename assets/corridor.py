@@ -80,17 +80,39 @@ SIDES = {"L": -1.0, "R": 1.0}  # x sign of each wall
 
 #: What stands along each wall: (kind, s of its centre, painting hung above it or "").
 LAYOUT: dict[str, list[tuple[str, float, str]]] = {
-    "L": [("door", 2.0, ""), ("bench", 6.0, "painting_landscape"), ("door", 9.2, ""),
-          ("planter", 11.2, ""), ("cabinet", 14.0, "painting_abstract"),
-          ("extinguisher", 16.7, ""), ("door", 18.0, ""), ("bench", 22.0, "painting_circles"),
-          ("planter", 23.35, ""), ("door", 26.0, ""), ("cabinet", 30.0, "painting_stripes"),
-          ("door", 33.2, ""), ("planter", 35.2, ""), ("bench", 38.0, "painting_colorfield")],
-    "R": [("planter", 0.7, ""), ("cabinet", 2.4, "painting_colorfield"), ("door", 6.0, ""),
-          ("bench", 10.0, "painting_stripes"), ("door", 13.2, ""), ("planter", 15.2, ""),
-          ("cabinet", 18.0, "painting_landscape"), ("door", 22.0, ""),
-          ("bench", 25.6, "painting_abstract"), ("planter", 27.2, ""), ("door", 30.0, ""),
-          ("extinguisher", 31.4, ""), ("cabinet", 34.0, "painting_circles"),
-          ("door", 37.2, ""), ("planter", 39.45, "")],
+    "L": [
+        ("door", 2.0, ""),
+        ("bench", 6.0, "painting_landscape"),
+        ("door", 9.2, ""),
+        ("planter", 11.2, ""),
+        ("cabinet", 14.0, "painting_abstract"),
+        ("extinguisher", 16.7, ""),
+        ("door", 18.0, ""),
+        ("bench", 22.0, "painting_circles"),
+        ("planter", 23.35, ""),
+        ("door", 26.0, ""),
+        ("cabinet", 30.0, "painting_stripes"),
+        ("door", 33.2, ""),
+        ("planter", 35.2, ""),
+        ("bench", 38.0, "painting_colorfield"),
+    ],
+    "R": [
+        ("planter", 0.7, ""),
+        ("cabinet", 2.4, "painting_colorfield"),
+        ("door", 6.0, ""),
+        ("bench", 10.0, "painting_stripes"),
+        ("door", 13.2, ""),
+        ("planter", 15.2, ""),
+        ("cabinet", 18.0, "painting_landscape"),
+        ("door", 22.0, ""),
+        ("bench", 25.6, "painting_abstract"),
+        ("planter", 27.2, ""),
+        ("door", 30.0, ""),
+        ("extinguisher", 31.4, ""),
+        ("cabinet", 34.0, "painting_circles"),
+        ("door", 37.2, ""),
+        ("planter", 39.45, ""),
+    ],
 }
 
 
@@ -114,9 +136,13 @@ def terrazzo(size: int = 512) -> Texture:
     tone = rng.normal(0.0, 1.0, 4).astype(np.float32)
     img = _solid(size, (196, 190, 180)) * (1.0 + 0.025 * tone[cell])[..., None]
     img *= (1.0 + 0.035 * _noise(rng, size, 36.0))[..., None]
-    for colour, sigma, level in (((124, 112, 100), 1.0, 2.1), ((236, 232, 224), 1.2, 2.2),
-                                 ((86, 92, 100), 0.9, 2.4), ((168, 128, 96), 1.1, 2.5),
-                                 ((64, 60, 58), 0.7, 2.7)):
+    for colour, sigma, level in (
+        ((124, 112, 100), 1.0, 2.1),
+        ((236, 232, 224), 1.2, 2.2),
+        ((86, 92, 100), 0.9, 2.4),
+        ((168, 128, 96), 1.1, 2.5),
+        ((64, 60, 58), 0.7, 2.7),
+    ):
         chips = _noise(rng, size, sigma)
         _paint(img, _smoothstep(level, level + 0.35, chips), colour)
     grout = (x % tile < 2) | (x % tile >= tile - 2) | (y % tile < 2) | (y % tile >= tile - 2)
@@ -165,8 +191,19 @@ def carpet_runner(size: int = 256) -> Texture:
 
 
 def make_corridor_textures() -> dict[str, Texture]:
-    makers = [plaster, terrazzo, ceiling_tiles, carpet_runner, wood, fabric, painting_abstract,
-              painting_landscape, painting_stripes, painting_circles, painting_colorfield]
+    makers = [
+        plaster,
+        terrazzo,
+        ceiling_tiles,
+        carpet_runner,
+        wood,
+        fabric,
+        painting_abstract,
+        painting_landscape,
+        painting_stripes,
+        painting_circles,
+        painting_colorfield,
+    ]
     textures = [make() for make in makers]
     return {t.name: t for t in textures}
 
@@ -230,12 +267,23 @@ def _pilaster_s() -> list[float]:
     return [BAY_M * k for k in range(1, round(LENGTH / BAY_M))]
 
 
-def _wall_box(b: MeshBuilder, side: str, s0: float, s1: float, y0: float, y1: float,
-              depth: float, uv_tile: float | None = None) -> None:
+def _wall_box(
+    b: MeshBuilder,
+    side: str,
+    s0: float,
+    s1: float,
+    y0: float,
+    y1: float,
+    depth: float,
+    uv_tile: float | None = None,
+) -> None:
     """A box against wall ``side`` from s0 to s1, y0 to y1, standing ``depth`` out of it."""
     sx = SIDES[side]
-    b.box((sx * (HW - depth / 2), (y0 + y1) / 2, -(s0 + s1) / 2), (depth, y1 - y0, s1 - s0),
-          uv_tile=uv_tile)
+    b.box(
+        (sx * (HW - depth / 2), (y0 + y1) / 2, -(s0 + s1) / 2),
+        (depth, y1 - y0, s1 - s0),
+        uv_tile=uv_tile,
+    )
 
 
 def _shell(mats: _Materials) -> list[Mesh]:
@@ -248,19 +296,24 @@ def _shell(mats: _Materials) -> list[Mesh]:
     b.box((0.0, 0.006, -LENGTH / 2), (RUNNER_W, 0.012, LENGTH - 1.0))
     m = b.mesh("carpet_runner", mats["carpet"])
     # Across the runner u runs 0..1 over its width; along it v counts runner widths.
-    m.uvs[:] = np.stack([(m.positions[:, 0] + RUNNER_W / 2) / RUNNER_W,
-                         -m.positions[:, 2] / RUNNER_W], axis=1)
+    m.uvs[:] = np.stack(
+        [(m.positions[:, 0] + RUNNER_W / 2) / RUNNER_W, -m.positions[:, 2] / RUNNER_W], axis=1
+    )
     meshes.append(m)
     b = MeshBuilder()
     b.quad((-HW, HEIGHT, -LENGTH), ex * 2 * HW, ez * LENGTH, CEILING_TILE_M, (0.25, 0.0))
     meshes.append(b.mesh("ceiling", mats["ceiling"]))
     for side, name in (("L", "left"), ("R", "right")):
-        start, run = ((-HW, 0, 0), -ez * LENGTH) if side == "L" else ((HW, 0, -LENGTH),
-                                                                       ez * LENGTH)
+        start, run = ((-HW, 0, 0), -ez * LENGTH) if side == "L" else ((HW, 0, -LENGTH), ez * LENGTH)
         lower, upper = MeshBuilder(), MeshBuilder()
         lower.quad(start, run, ey * DADO_Y, WALL_TILE_M)
-        upper.quad(np.add(start, ey * DADO_Y), run, ey * (HEIGHT - DADO_Y), WALL_TILE_M,
-                   (0.0, DADO_Y / WALL_TILE_M))
+        upper.quad(
+            np.add(start, ey * DADO_Y),
+            run,
+            ey * (HEIGHT - DADO_Y),
+            WALL_TILE_M,
+            (0.0, DADO_Y / WALL_TILE_M),
+        )
         meshes.append(lower.mesh(f"wall_{name}_lower", mats["wall_lower"]))
         meshes.append(upper.mesh(f"wall_{name}", mats["wall_upper"]))
         trim = MeshBuilder()
@@ -269,24 +322,30 @@ def _shell(mats: _Materials) -> list[Mesh]:
             _wall_box(trim, side, s0, s1, DADO_Y - 0.025, DADO_Y + 0.03, 0.022)  # dado rail
         meshes.append(trim.mesh(f"trim_{name}", mats["white_paint"]))
     for z, yaw, name in ((-LENGTH, 0.0, "wall_far"), (0.0, 180.0, "wall_near")):
-        for y0, y1, suffix, mat in ((0.0, DADO_Y, "_lower", "wall_lower"),
-                                    (DADO_Y, HEIGHT, "", "wall_upper")):
+        for y0, y1, suffix, mat in (
+            (0.0, DADO_Y, "_lower", "wall_lower"),
+            (DADO_Y, HEIGHT, "", "wall_upper"),
+        ):
             b = MeshBuilder((0.0, 0.0, z), yaw)
-            b.quad((-HW, y0, 0.0), ex * 2 * HW, ey * (y1 - y0), WALL_TILE_M,
-                   (0.0, y0 / WALL_TILE_M))
+            b.quad(
+                (-HW, y0, 0.0), ex * 2 * HW, ey * (y1 - y0), WALL_TILE_M, (0.0, y0 / WALL_TILE_M)
+            )
             meshes.append(b.mesh(name + suffix, mats[mat]))
     pilasters, beams, lights = MeshBuilder(), MeshBuilder(), MeshBuilder()
     for s in _pilaster_s():
         for side in SIDES:
-            _wall_box(pilasters, side, s - PILASTER_W / 2, s + PILASTER_W / 2, 0.0, HEIGHT,
-                      PILASTER_D)
+            _wall_box(
+                pilasters, side, s - PILASTER_W / 2, s + PILASTER_W / 2, 0.0, HEIGHT, PILASTER_D
+            )
         beams.box((0.0, HEIGHT - BEAM_H / 2, -s), (2 * HW - 2 * PILASTER_D, BEAM_H, PILASTER_W))
     for k in range(round(LENGTH / BAY_M)):
         for off in (1.0, 3.0):
             lights.cylinder((0.0, HEIGHT - 0.012, -(BAY_M * k + off)), 0.075, 0.075, 0.012, 20)
-    meshes += [pilasters.mesh("pilasters", mats["white_paint"]),
-               beams.mesh("ceiling_beams", mats["white_paint"]),
-               lights.mesh("downlights", mats["downlight"])]
+    meshes += [
+        pilasters.mesh("pilasters", mats["white_paint"]),
+        beams.mesh("ceiling_beams", mats["white_paint"]),
+        lights.mesh("downlights", mats["downlight"]),
+    ]
     return meshes
 
 
@@ -304,8 +363,11 @@ def _far_window(mats: _Materials) -> list[Mesh]:
     frame.box((0.0, 2.0, d / 2), (w, 0.045, d))  # transom
     sign = MeshBuilder((0.0, 0.0, -LENGTH))
     sign.box((0.0, 2.72, 0.04), (0.36, 0.15, 0.08))
-    return [glass.mesh("window", mats["window_sky"]), frame.mesh("window_frame", mats["bronze"]),
-            sign.mesh("exit_sign", mats["exit_sign"])]
+    return [
+        glass.mesh("window", mats["window_sky"]),
+        frame.mesh("window_frame", mats["bronze"]),
+        sign.mesh("exit_sign", mats["exit_sign"]),
+    ]
 
 
 # -- things along the walls ---------------------------------------------------------------------
@@ -336,17 +398,21 @@ def _door(mats: _Materials, name: str, b: MeshBuilder, handle_x: float) -> list[
     trim.box((0.0, DOOR_H + a / 2, 0.0175), (DOOR_W, a, 0.035))
     metal.box((0.0, 0.13, 0.026), (DOOR_W - 0.08, 0.24, 0.004))  # kick plate
     hx = handle_x * (DOOR_W / 2 - 0.08)
-    metal.cylinder((hx, 1.0, 0.024), 0.027, 0.027, 0.01, 20, rot=rot_x(90.0),
-                   pivot=(hx, 1.0, 0.024))
-    metal.cylinder((hx, 1.0, 0.034), 0.009, 0.009, 0.055, 12, rot=rot_x(90.0),
-                   pivot=(hx, 1.0, 0.034))
+    metal.cylinder(
+        (hx, 1.0, 0.024), 0.027, 0.027, 0.01, 20, rot=rot_x(90.0), pivot=(hx, 1.0, 0.024)
+    )
+    metal.cylinder(
+        (hx, 1.0, 0.034), 0.009, 0.009, 0.055, 12, rot=rot_x(90.0), pivot=(hx, 1.0, 0.034)
+    )
     metal.box((hx - handle_x * 0.055, 1.0, 0.085), (0.13, 0.018, 0.018))
     px = -handle_x * (DOOR_W / 2 + a + 0.17)  # the number plate, on the hinge side
     plate.box((px, 1.55, 0.004), (0.15, 0.1, 0.008))
-    return [leaf.mesh(f"door_{name}", mats["walnut"]), trim.mesh(f"door_{name}_frame",
-                                                                 mats["white_paint"]),
-            metal.mesh(f"door_{name}_hardware", mats["brushed_steel"]),
-            plate.mesh(f"door_{name}_number", mats["brass"])]
+    return [
+        leaf.mesh(f"door_{name}", mats["walnut"]),
+        trim.mesh(f"door_{name}_frame", mats["white_paint"]),
+        metal.mesh(f"door_{name}_hardware", mats["brushed_steel"]),
+        plate.mesh(f"door_{name}_number", mats["brass"]),
+    ]
 
 
 def _bench(mats: _Materials, name: str, b: MeshBuilder) -> list[Mesh]:
@@ -355,14 +421,17 @@ def _bench(mats: _Materials, name: str, b: MeshBuilder) -> list[Mesh]:
     seat.box((0.0, 0.38, z), (length, 0.04, depth), uv_tile=0.8)
     for sx in (-1, 1):
         for sz in (-1, 1):
-            legs.box((sx * (length / 2 - 0.07), 0.18, z + sz * (depth / 2 - 0.05)),
-                     (0.04, 0.36, 0.04))
+            legs.box(
+                (sx * (length / 2 - 0.07), 0.18, z + sz * (depth / 2 - 0.05)), (0.04, 0.36, 0.04)
+            )
         legs.box((sx * (length / 2 - 0.07), 0.08, z), (0.03, 0.03, depth - 0.1))
     legs.box((0.0, 0.08, z), (length - 0.14, 0.03, 0.03))
     cushion.box((0.0, 0.435, z), (length - 0.05, 0.07, depth - 0.04), uv_tile=0.35)
-    return [seat.mesh(f"bench_{name}", mats["walnut"]),
-            legs.mesh(f"bench_{name}_frame", mats["steel_black"]),
-            cushion.mesh(f"bench_{name}_cushion", mats["fabric"])]
+    return [
+        seat.mesh(f"bench_{name}", mats["walnut"]),
+        legs.mesh(f"bench_{name}_frame", mats["steel_black"]),
+        cushion.mesh(f"bench_{name}_cushion", mats["fabric"]),
+    ]
 
 
 def _cabinet(mats: _Materials, name: str, b: MeshBuilder) -> list[Mesh]:
@@ -372,22 +441,24 @@ def _cabinet(mats: _Materials, name: str, b: MeshBuilder) -> list[Mesh]:
     body.box((0.0, (0.12 + top) / 2, z), (length, top - 0.12, depth), uv_tile=0.8)
     for sx in (-1, 1):
         for sz in (-1, 1):
-            feet.box((sx * (length / 2 - 0.08), 0.06, z + sz * (depth / 2 - 0.06)),
-                     (0.035, 0.12, 0.035))
+            feet.box(
+                (sx * (length / 2 - 0.08), 0.06, z + sz * (depth / 2 - 0.06)), (0.035, 0.12, 0.035)
+            )
     for x in (-0.4, 0.0, 0.4):  # door gaps on the front
         feet.box((x, (0.12 + top) / 2, z + depth / 2), (0.008, top - 0.16, 0.006))
     for x in (-0.6, -0.2, 0.2, 0.6):  # pulls
-        feet.box((x + (0.15 if x < 0 else -0.15), 0.62, z + depth / 2 + 0.01),
-                 (0.012, 0.12, 0.012))
+        feet.box((x + (0.15 if x < 0 else -0.15), 0.62, z + depth / 2 + 0.01), (0.012, 0.12, 0.012))
     lamp.cylinder((0.5, top, z), 0.075, 0.05, 0.3, 24)
     shade.cylinder((0.5, top + 0.28, z), 0.16, 0.12, 0.22, 28)
     vase.cylinder((-0.45, top, z), 0.06, 0.1, 0.2, 28)
     vase.cylinder((-0.45, top + 0.2, z), 0.1, 0.035, 0.13, 28)
-    return [body.mesh(f"cabinet_{name}", mats["walnut"]),
-            feet.mesh(f"cabinet_{name}_hardware", mats["steel_black"]),
-            lamp.mesh(f"lamp_{name}", mats["ceramic_cream"]),
-            shade.mesh(f"lamp_{name}_shade", mats["lamp_shade"]),
-            vase.mesh(f"vase_{name}", mats["ceramic_teal"])]
+    return [
+        body.mesh(f"cabinet_{name}", mats["walnut"]),
+        feet.mesh(f"cabinet_{name}_hardware", mats["steel_black"]),
+        lamp.mesh(f"lamp_{name}", mats["ceramic_cream"]),
+        shade.mesh(f"lamp_{name}_shade", mats["lamp_shade"]),
+        vase.mesh(f"vase_{name}", mats["ceramic_teal"]),
+    ]
 
 
 def _planter(mats: _Materials, name: str, b: MeshBuilder, seed: int) -> list[Mesh]:
@@ -402,14 +473,16 @@ def _planter(mats: _Materials, name: str, b: MeshBuilder, seed: int) -> list[Mes
         heading = i * (360.0 / count) + float(rng.uniform(-8, 8))
         tilt = float(rng.uniform(3, 15))
         length = float(rng.uniform(0.55, 0.95))
-        base = np.array([0.0, 0.5, z]) + 0.08 * np.array([math.sin(math.radians(heading)), 0.0,
-                                                          math.cos(math.radians(heading))])
+        base = np.array([0.0, 0.5, z]) + 0.08 * np.array(
+            [math.sin(math.radians(heading)), 0.0, math.cos(math.radians(heading))]
+        )
         r = rot_y(heading) @ rot_x(-tilt)
-        plant.box(base + np.array([0.0, length / 2, 0.0]), (0.07, length, 0.008), rot=r,
-                  pivot=base)
-    return [pot.mesh(f"planter_{name}", mats["ceramic_charcoal"]),
-            soil.mesh(f"planter_{name}_soil", mats["soil"]),
-            plant.mesh(f"plant_{name}", mats["leaves"])]
+        plant.box(base + np.array([0.0, length / 2, 0.0]), (0.07, length, 0.008), rot=r, pivot=base)
+    return [
+        pot.mesh(f"planter_{name}", mats["ceramic_charcoal"]),
+        soil.mesh(f"planter_{name}_soil", mats["soil"]),
+        plant.mesh(f"plant_{name}", mats["leaves"]),
+    ]
 
 
 def _extinguisher(mats: _Materials, name: str, b: MeshBuilder) -> list[Mesh]:
@@ -422,24 +495,33 @@ def _extinguisher(mats: _Materials, name: str, b: MeshBuilder) -> list[Mesh]:
     parts.box((0.06, 0.8, z + 0.06), (0.02, 0.3, 0.02))  # hose
     parts.box((0.0, 0.75, 0.012), (0.06, 0.12, 0.024))  # wall bracket
     sign.box((0.0, 1.35, 0.003), (0.2, 0.2, 0.006))
-    return [body.mesh(f"extinguisher_{name}", mats["signal_red"]),
-            parts.mesh(f"extinguisher_{name}_fittings", mats["steel_black"]),
-            sign.mesh(f"extinguisher_{name}_sign", mats["signal_red"])]
+    return [
+        body.mesh(f"extinguisher_{name}", mats["signal_red"]),
+        parts.mesh(f"extinguisher_{name}_fittings", mats["steel_black"]),
+        sign.mesh(f"extinguisher_{name}_sign", mats["signal_red"]),
+    ]
 
 
-def _painting(mats: _Materials, name: str, b: MeshBuilder, texture: str, frame_mat: str
-              ) -> list[Mesh]:
+def _painting(
+    mats: _Materials, name: str, b: MeshBuilder, texture: str, frame_mat: str
+) -> list[Mesh]:
     aspect = PAINTING_ASPECTS[texture]
     h = 0.72 if aspect > 1.0 else 0.9
     w, yc = h * aspect, 1.68
     canvas, frame = _like(b, 2)
     canvas.quad((-w / 2, yc - h / 2, 0.03), (w, 0.0, 0.0), (0.0, h, 0.0))
     fw, fd = 0.05, 0.04
-    for dx, dy, lx, ly in ((0, (h + fw) / 2, w + 2 * fw, fw), (0, -(h + fw) / 2, w + 2 * fw, fw),
-                           ((w + fw) / 2, 0, fw, h), (-(w + fw) / 2, 0, fw, h)):
+    for dx, dy, lx, ly in (
+        (0, (h + fw) / 2, w + 2 * fw, fw),
+        (0, -(h + fw) / 2, w + 2 * fw, fw),
+        ((w + fw) / 2, 0, fw, h),
+        (-(w + fw) / 2, 0, fw, h),
+    ):
         frame.box((dx, yc + dy, fd / 2), (lx, ly, fd), uv_tile=0.5)
-    return [canvas.mesh(f"painting_{name}", mats[texture]),
-            frame.mesh(f"frame_{name}", mats[frame_mat])]
+    return [
+        canvas.mesh(f"painting_{name}", mats[texture]),
+        frame.mesh(f"frame_{name}", mats[frame_mat]),
+    ]
 
 
 def _near_doors(mats: _Materials) -> list[Mesh]:
@@ -458,8 +540,10 @@ def _near_doors(mats: _Materials) -> list[Mesh]:
     bars.box((0.0, 1.0, 0.06), (1.5, 0.04, 0.03))  # push bars
     for x in (-0.7, -0.2, 0.2, 0.7):
         bars.box((x, 1.0, 0.04), (0.04, 0.06, 0.04))
-    return meshes + [b.mesh("door_near_frame", mats["white_paint"]),
-                     bars.mesh("door_near_bars", mats["brushed_steel"])]
+    return meshes + [
+        b.mesh("door_near_frame", mats["white_paint"]),
+        bars.mesh("door_near_bars", mats["brushed_steel"]),
+    ]
 
 
 def _wall_things(mats: _Materials) -> list[Mesh]:
@@ -486,8 +570,9 @@ def _wall_things(mats: _Materials) -> list[Mesh]:
                 raise ValueError(f"unknown wall item {kind!r}")
             if painting:
                 count["painting"] = count.get("painting", 0) + 1
-                meshes += _painting(mats, f"{side}{count['painting']}", b, painting,
-                                    frames[count["painting"] % 2])
+                meshes += _painting(
+                    mats, f"{side}{count['painting']}", b, painting, frames[count["painting"] % 2]
+                )
     return meshes
 
 
@@ -570,9 +655,15 @@ def make_corridor_lights(count: int) -> list[PointLight]:
     near_beam = np.abs(s - np.round(s / BAY_M) * BAY_M) < PILASTER_W / 2 + 0.05
     y[near_beam] = np.minimum(y[near_beam], HEIGHT - BEAM_H - 0.1)  # below the soffit beams
     r = light_range(count)
-    lights = [PointLight((float(x[k]), float(y[k]), float(-s[k])),
-                         (float(tint[k, 0]), float(tint[k, 1]), float(tint[k, 2])), 1.0, r)
-              for k in range(count)]
+    lights = [
+        PointLight(
+            (float(x[k]), float(y[k]), float(-s[k])),
+            (float(tint[k, 0]), float(tint[k, 1]), float(tint[k, 2])),
+            1.0,
+            r,
+        )
+        for k in range(count)
+    ]
     scale = TARGET_IRRADIANCE / max(corridor_irradiance(lights), 1e-12)
     for light in lights:
         light.intensity = round(scale, 6)
@@ -592,9 +683,16 @@ def build_corridor(lights: int = 100) -> Scene:
     mats = _corridor_materials(make_corridor_textures())
     meshes = _shell(mats) + _far_window(mats) + _near_doors(mats) + _wall_things(mats)
     name = "corridor" if lights == 100 else f"corridor-{lights}"
-    scene = Scene(name, meshes, mats.materials, mats.textures, make_corridor_lights(lights),
-                  Viewpoint(SPAWN.position, SPAWN.yaw_deg, SPAWN.pitch_deg), floor_y=0.0,
-                  source="built-in")
+    scene = Scene(
+        name,
+        meshes,
+        mats.materials,
+        mats.textures,
+        make_corridor_lights(lights),
+        Viewpoint(SPAWN.position, SPAWN.yaw_deg, SPAWN.pitch_deg),
+        floor_y=0.0,
+        source="built-in",
+    )
     return scene.sanitized()
 
 
@@ -614,8 +712,16 @@ def corridor_walk() -> CameraPath:
         heading = math.degrees(math.atan2(SWAY_M * omega * math.cos(omega * t), WALK_SPEED_MPS))
         yaw = ease * (-0.7 * heading + 2.5 * math.sin(2 * math.pi * t / 6.5))
         pitch = SPAWN.pitch_deg + ease * 1.2 * math.sin(2 * math.pi * t / 3.1)
-        keys.append(PathKey(round(t, 6), (round(x, 6), EYE_HEIGHT, round(-s, 6)), round(yaw, 4),
-                            round(pitch, 4), (0.5, 0.5), False))
+        keys.append(
+            PathKey(
+                round(t, 6),
+                (round(x, 6), EYE_HEIGHT, round(-s, 6)),
+                round(yaw, 4),
+                round(pitch, 4),
+                (0.5, 0.5),
+                False,
+            )
+        )
     return CameraPath(keys, "corridor")
 
 

@@ -92,8 +92,15 @@ class MeshBuilder:
         self._idx: list[np.ndarray] = []
         self._count = 0
 
-    def add(self, pos: np.ndarray, nrm: np.ndarray, uv: np.ndarray, tri: np.ndarray,
-            rot: np.ndarray | None = None, pivot: Vec | None = None) -> None:
+    def add(
+        self,
+        pos: np.ndarray,
+        nrm: np.ndarray,
+        uv: np.ndarray,
+        tri: np.ndarray,
+        rot: np.ndarray | None = None,
+        pivot: Vec | None = None,
+    ) -> None:
         pos = np.asarray(pos, np.float64).reshape(-1, 3)
         nrm = np.asarray(nrm, np.float64).reshape(-1, 3)
         if rot is not None:
@@ -115,9 +122,16 @@ class MeshBuilder:
         self._idx.append(tri + self._count)
         self._count += pos.shape[0]
 
-    def quad(self, origin: Vec, u_axis: Vec, v_axis: Vec, uv_tile: float | None = None,
-             uv_origin: Vec = (0.0, 0.0), rot: np.ndarray | None = None,
-             pivot: Vec | None = None) -> None:
+    def quad(
+        self,
+        origin: Vec,
+        u_axis: Vec,
+        v_axis: Vec,
+        uv_tile: float | None = None,
+        uv_origin: Vec = (0.0, 0.0),
+        rot: np.ndarray | None = None,
+        pivot: Vec | None = None,
+    ) -> None:
         """The parallelogram origin + s*u_axis + t*v_axis, facing cross(u_axis, v_axis).
 
         uvs run 0..1 over the quad, or (with ``uv_tile``) in metres / tile from ``uv_origin``.
@@ -129,12 +143,20 @@ class MeshBuilder:
         if uv_tile is None:
             uv = st
         else:
-            uv = np.asarray(uv_origin, np.float64) + st * [np.linalg.norm(u) / uv_tile,
-                                                           np.linalg.norm(v) / uv_tile]
+            uv = np.asarray(uv_origin, np.float64) + st * [
+                np.linalg.norm(u) / uv_tile,
+                np.linalg.norm(v) / uv_tile,
+            ]
         self.add(pos, np.repeat(n[None], 4, axis=0), uv, [[0, 1, 2], [0, 2, 3]], rot, pivot)
 
-    def box(self, center: Vec, size: Vec, rot: np.ndarray | None = None,
-            pivot: Vec | None = None, uv_tile: float | None = None) -> None:
+    def box(
+        self,
+        center: Vec,
+        size: Vec,
+        rot: np.ndarray | None = None,
+        pivot: Vec | None = None,
+        uv_tile: float | None = None,
+    ) -> None:
         """An axis-aligned box (before ``rot`` about ``pivot``, default its centre).
 
         uvs run 0..1 over each face, or (with ``uv_tile``) in metres / tile from a face corner.
@@ -145,20 +167,38 @@ class MeshBuilder:
         hn, hu, hv = (np.abs(a) @ half for a in (n, u, v))  # half-extents along n, u, v per face
         st = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
         corner = n * hn[:, None] - u * hu[:, None] - v * hv[:, None]  # (6, 3)
-        pos = (c + corner[:, None, :] + st[None, :, :1] * (2 * u * hu[:, None])[:, None, :]
-               + st[None, :, 1:] * (2 * v * hv[:, None])[:, None, :])
+        pos = (
+            c
+            + corner[:, None, :]
+            + st[None, :, :1] * (2 * u * hu[:, None])[:, None, :]
+            + st[None, :, 1:] * (2 * v * hv[:, None])[:, None, :]
+        )
         if uv_tile is None:
             uv = np.broadcast_to(st, (6, 4, 2))
         else:
             uv = st[None] * (np.stack([2 * hu, 2 * hv], 1) / uv_tile)[:, None, :]
         nrm = np.repeat(n[:, None, :], 4, axis=1)
-        tri = (np.array([[0, 1, 2], [0, 2, 3]])[None] + 4 * np.arange(6)[:, None, None])
-        self.add(pos.reshape(-1, 3), nrm.reshape(-1, 3), uv.reshape(-1, 2), tri.reshape(-1, 3),
-                 rot, c if pivot is None else pivot)
+        tri = np.array([[0, 1, 2], [0, 2, 3]])[None] + 4 * np.arange(6)[:, None, None]
+        self.add(
+            pos.reshape(-1, 3),
+            nrm.reshape(-1, 3),
+            uv.reshape(-1, 2),
+            tri.reshape(-1, 3),
+            rot,
+            c if pivot is None else pivot,
+        )
 
-    def cylinder(self, base: Vec, r_bottom: float, r_top: float, height: float,
-                 segments: int = 24, caps: bool = True, rot: np.ndarray | None = None,
-                 pivot: Vec | None = None) -> None:
+    def cylinder(
+        self,
+        base: Vec,
+        r_bottom: float,
+        r_top: float,
+        height: float,
+        segments: int = 24,
+        caps: bool = True,
+        rot: np.ndarray | None = None,
+        pivot: Vec | None = None,
+    ) -> None:
         """A (truncated) cone along +Y from ``base``, with smooth side normals."""
         b = np.asarray(base, np.float64)
         a = np.linspace(0.0, 2 * np.pi, segments + 1)
@@ -169,12 +209,17 @@ class MeshBuilder:
         ring_t = b + np.stack([r_top * ca, np.full_like(a, height), r_top * sa], axis=1)
         pos = np.concatenate([ring_b, ring_t])
         nrm = np.concatenate([side_n, side_n])
-        uv = np.concatenate([np.stack([a / (2 * np.pi), np.zeros_like(a)], 1),
-                             np.stack([a / (2 * np.pi), np.ones_like(a)], 1)])
+        uv = np.concatenate(
+            [
+                np.stack([a / (2 * np.pi), np.zeros_like(a)], 1),
+                np.stack([a / (2 * np.pi), np.ones_like(a)], 1),
+            ]
+        )
         k = np.arange(segments)
         m = segments + 1
-        tri = np.concatenate([np.stack([k, k + 1, k + m + 1], 1),
-                              np.stack([k, k + m + 1, k + m], 1)])
+        tri = np.concatenate(
+            [np.stack([k, k + 1, k + m + 1], 1), np.stack([k, k + m + 1, k + m], 1)]
+        )
         pv = b if pivot is None else pivot
         self.add(pos, nrm, uv, tri, rot, pv)
         if not caps:
@@ -189,8 +234,15 @@ class MeshBuilder:
             ctri = np.stack([np.zeros(segments, np.int64), 1 + k, 1 + (k + 1) % segments], 1)
             self.add(cpos, cn, cuv, ctri, rot, pv)
 
-    def prism(self, outline_xz: np.ndarray, y0: float, y1: float, rot: np.ndarray | None = None,
-              pivot: Vec | None = None, uv_tile: float = 1.0) -> None:
+    def prism(
+        self,
+        outline_xz: np.ndarray,
+        y0: float,
+        y1: float,
+        rot: np.ndarray | None = None,
+        pivot: Vec | None = None,
+        uv_tile: float = 1.0,
+    ) -> None:
         """A vertical extrusion of a simple polygon (x, z) between heights y0 and y1."""
         poly = np.asarray(outline_xz, np.float64)
         x, z = poly[:, 0], poly[:, 1]
@@ -209,17 +261,21 @@ class MeshBuilder:
         for i in range(n):
             a, b = poly[i], nxt[i]
             pos = np.array([[a[0], y0, a[1]], [b[0], y0, b[1]], [b[0], y1, b[1]], [a[0], y1, a[1]]])
-            uv = np.array([[along[i], y0], [along[i + 1], y0], [along[i + 1], y1],
-                           [along[i], y1]]) / uv_tile
-            self.add(pos, np.repeat(out[i:i + 1], 4, 0), uv, [[0, 1, 2], [0, 2, 3]], rot, pivot)
+            uv = (
+                np.array([[along[i], y0], [along[i + 1], y0], [along[i + 1], y1], [along[i], y1]])
+                / uv_tile
+            )
+            self.add(pos, np.repeat(out[i : i + 1], 4, 0), uv, [[0, 1, 2], [0, 2, 3]], rot, pivot)
 
     def mesh(self, name: str, material: int) -> Mesh:
-        return Mesh(name,
-                    np.concatenate(self._pos).astype(np.float32),
-                    np.concatenate(self._nrm).astype(np.float32),
-                    np.concatenate(self._uv).astype(np.float32),
-                    np.concatenate(self._idx).astype(np.uint32),
-                    material)
+        return Mesh(
+            name,
+            np.concatenate(self._pos).astype(np.float32),
+            np.concatenate(self._nrm).astype(np.float32),
+            np.concatenate(self._uv).astype(np.float32),
+            np.concatenate(self._idx).astype(np.uint32),
+            material,
+        )
 
 
 _BOX_N = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
@@ -229,13 +285,19 @@ _BOX_V = np.array([[0, 1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1], [0, 1, 0], [0, 1
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross product (np.cross is slow on the small arrays built here)."""
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
 
 
 def triangulate(poly: np.ndarray) -> np.ndarray:
     """Ear-clipping triangulation of a simple counter-clockwise (x, z) polygon: (n-2, 3) indices."""
+
     def cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
         return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
 
@@ -276,10 +338,15 @@ class _Materials:
         self.materials: list[Material] = []
         self._by_name: dict[str, int] = {}
 
-    def add(self, name: str, texture: str | None = None,
-            color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
-            roughness: float = 0.6, metallic: float = 0.0,
-            emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> int:
+    def add(
+        self,
+        name: str,
+        texture: str | None = None,
+        color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
+        roughness: float = 0.6,
+        metallic: float = 0.0,
+        emissive: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> int:
         tex = None if texture is None else self._tex_index[texture]
         self._by_name[name] = len(self.materials)
         self.materials.append(Material(name, color, tex, roughness, metallic, emissive))
@@ -326,12 +393,18 @@ def _shell(mats: _Materials) -> list[Mesh]:
     meshes = []
     ex, ey, ez = np.eye(3)
     b = MeshBuilder()  # floor: u along +x, v along -z
-    b.quad((-HX, 0, HZ), ex * ROOM_X, -ez * ROOM_Z, WALL_TILE_M, (-HX / WALL_TILE_M,
-                                                                  -HZ / WALL_TILE_M))
+    b.quad(
+        (-HX, 0, HZ), ex * ROOM_X, -ez * ROOM_Z, WALL_TILE_M, (-HX / WALL_TILE_M, -HZ / WALL_TILE_M)
+    )
     meshes.append(b.mesh("floor", mats["parquet"]))
     b = MeshBuilder()
-    b.quad((-HX, ROOM_H, -HZ), ex * ROOM_X, ez * ROOM_Z, CEILING_TILE_M,
-           (-HX / CEILING_TILE_M, -HZ / CEILING_TILE_M))
+    b.quad(
+        (-HX, ROOM_H, -HZ),
+        ex * ROOM_X,
+        ez * ROOM_Z,
+        CEILING_TILE_M,
+        (-HX / CEILING_TILE_M, -HZ / CEILING_TILE_M),
+    )
     meshes.append(b.mesh("ceiling", mats["ceiling"]))
     walls = [  # name, bottom-left corner seen from inside, direction to the right, length
         ("wall_north", (-HX, 0, -HZ), ex, ROOM_X),
@@ -395,8 +468,12 @@ def _paintings(mats: _Materials) -> list[Mesh]:
         frame = MeshBuilder()
         fw, fd = 0.06, 0.045  # moulding width and depth
         absr, absn = np.abs(right), np.abs(normal)
-        pieces = ((0, (h + fw) / 2, w + 2 * fw, fw), (0, -(h + fw) / 2, w + 2 * fw, fw),
-                  ((w + fw) / 2, 0, fw, h), (-(w + fw) / 2, 0, fw, h))
+        pieces = (
+            (0, (h + fw) / 2, w + 2 * fw, fw),
+            (0, -(h + fw) / 2, w + 2 * fw, fw),
+            ((w + fw) / 2, 0, fw, h),
+            (-(w + fw) / 2, 0, fw, h),
+        )
         for dx, dy, lx, ly in pieces:
             c = centre + right * dx + ey * dy + normal * fd / 2
             frame.box(c, absr * lx + ey * ly + absn * fd, uv_tile=0.5)
@@ -418,8 +495,11 @@ def _door_and_switch(mats: _Materials) -> list[Mesh]:
     switch = MeshBuilder()
     switch.box((2.22, 1.05, HZ - 0.006), (0.086, 0.086, 0.012))  # plate
     switch.box((2.22, 1.05, HZ - 0.015), (0.032, 0.05, 0.006))  # rocker
-    return [door.mesh("door", mats["white_paint"]), handle.mesh("door_handle", mats["chrome"]),
-            switch.mesh("light_switch", mats["switch_plastic"])]
+    return [
+        door.mesh("door", mats["white_paint"]),
+        handle.mesh("door_handle", mats["chrome"]),
+        switch.mesh("light_switch", mats["switch_plastic"]),
+    ]
 
 
 def _window(mats: _Materials) -> list[Mesh]:
@@ -446,9 +526,11 @@ def _window(mats: _Materials) -> list[Mesh]:
     for zl in (z0 + 0.35, zc, z1 - 0.35):  # ladder tapes
         blinds.box((x + 0.026, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
         blinds.box((x - 0.026, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
-    return [glass.mesh("window", mats["window_sky"]), frame.mesh("window_frame",
-                                                                  mats["white_paint"]),
-            blinds.mesh("blinds", mats["blinds"])]
+    return [
+        glass.mesh("window", mats["window_sky"]),
+        frame.mesh("window_frame", mats["white_paint"]),
+        blinds.mesh("blinds", mats["blinds"]),
+    ]
 
 
 PIANO_POS = (-2.4, -1.6)
@@ -496,9 +578,12 @@ def _piano(mats: _Materials) -> list[Mesh]:
     for sx in (-1, 1):
         for sz in (-1, 1):
             bench.box((sx * 0.36, 0.23, 1.3 + sz * 0.14), (0.045, 0.46, 0.045))
-    return [body.mesh("piano", mats["piano_lacquer"]), keys.mesh("piano_keys", mats["piano_ivory"]),
-            pedals.mesh("piano_pedals", mats["brass"]), bench.mesh("piano_bench",
-                                                                    mats["piano_lacquer"])]
+    return [
+        body.mesh("piano", mats["piano_lacquer"]),
+        keys.mesh("piano_keys", mats["piano_ivory"]),
+        pedals.mesh("piano_pedals", mats["brass"]),
+        bench.mesh("piano_bench", mats["piano_lacquer"]),
+    ]
 
 
 SOFA_POS = (3.5, -0.5)
@@ -545,9 +630,14 @@ def _living_area(mats: _Materials) -> list[Mesh]:
     lamp.cylinder((0, 0.03, 0), 0.015, 0.015, 1.3, 12)
     shade = MeshBuilder((LAMP_POS[0], 0.0, LAMP_POS[1]))
     shade.cylinder((0, 1.3, 0), 0.23, 0.17, 0.32, 32)
-    return [sofa.mesh("sofa", mats["fabric"]), table.mesh("coffee_table", mats["walnut"]),
-            chair.mesh("chair", mats["walnut"]), rug.mesh("rug", mats["rug"]),
-            lamp.mesh("floor_lamp", mats["brass"]), shade.mesh("lamp_shade", mats["lamp_shade"])]
+    return [
+        sofa.mesh("sofa", mats["fabric"]),
+        table.mesh("coffee_table", mats["walnut"]),
+        chair.mesh("chair", mats["walnut"]),
+        rug.mesh("rug", mats["rug"]),
+        lamp.mesh("floor_lamp", mats["brass"]),
+        shade.mesh("lamp_shade", mats["lamp_shade"]),
+    ]
 
 
 def _decor(mats: _Materials) -> list[Mesh]:
@@ -571,14 +661,17 @@ def _decor(mats: _Materials) -> list[Mesh]:
         length = float(rng.uniform(0.5, 0.75))
         base = np.array([0.0, 0.38, 0.0])
         r = rot_y(heading) @ rot_x(-tilt)
-        plant.box(base + np.array([0.0, length / 2, 0.0]), (0.1, length, 0.008), rot=r,
-                  pivot=base)
+        plant.box(base + np.array([0.0, length / 2, 0.0]), (0.1, length, 0.008), rot=r, pivot=base)
     downlights = MeshBuilder()
     for x, z in _four_light_xz():
         downlights.cylinder((x, ROOM_H - 0.015, z), 0.09, 0.09, 0.015, 24)
-    return [sideboard.mesh("sideboard", mats["walnut"]), vase.mesh("vase", mats["ceramic_blue"]),
-            pot.mesh("plant_pot", mats["terracotta"]), plant.mesh("plant", mats["leaves"]),
-            downlights.mesh("ceiling_lights", mats["downlight"])]
+    return [
+        sideboard.mesh("sideboard", mats["walnut"]),
+        vase.mesh("vase", mats["ceramic_blue"]),
+        pot.mesh("plant_pot", mats["terracotta"]),
+        plant.mesh("plant", mats["leaves"]),
+        downlights.mesh("ceiling_lights", mats["downlight"]),
+    ]
 
 
 # -- lights -------------------------------------------------------------------------------------
@@ -609,8 +702,12 @@ def _shell_samples() -> tuple[np.ndarray, np.ndarray]:
     gx, gz = np.meshgrid(xs, zs)
     pts.append(np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], 1))
     nrm.append(np.tile([0.0, 1.0, 0.0], (gx.size, 1)))
-    for fixed, normal, axis, values in ((-HZ, (0, 0, 1), 0, xs), (HZ, (0, 0, -1), 0, xs),
-                                        (-HX, (1, 0, 0), 2, zs), (HX, (-1, 0, 0), 2, zs)):
+    for fixed, normal, axis, values in (
+        (-HZ, (0, 0, 1), 0, xs),
+        (HZ, (0, 0, -1), 0, xs),
+        (-HX, (1, 0, 0), 2, zs),
+        (HX, (-1, 0, 0), 2, zs),
+    ):
         a, y = np.meshgrid(values, ys)
         p = np.zeros((a.size, 3))
         p[:, axis] = a.ravel()
@@ -638,8 +735,10 @@ def make_lights(count: int) -> list[PointLight]:
     """Four warm ceiling lights, or ``count`` jittered lights (seeded) with matched brightness."""
     if count < 0:
         raise ValueError(f"light count must be >= 0, got {count}")
-    four = [PointLight((x, 2.6, z), WARM_WHITE, FOUR_LIGHT_INTENSITY, FOUR_LIGHT_RANGE_M)
-            for x, z in _four_light_xz()]
+    four = [
+        PointLight((x, 2.6, z), WARM_WHITE, FOUR_LIGHT_INTENSITY, FOUR_LIGHT_RANGE_M)
+        for x, z in _four_light_xz()
+    ]
     if count == 4:
         return four
     if count == 0:
@@ -660,9 +759,15 @@ def make_lights(count: int) -> list[PointLight]:
         near = np.hypot(x - ox, z - oz) < radius
         y[near] = np.maximum(y[near], top + 0.2 + 0.5 * (y[near] - 1.2) / 1.4)
     tint = np.clip(np.asarray(WARM_WHITE) + rng.uniform(-0.04, 0.04, (count, 3)), 0.0, 1.0)
-    lights = [PointLight((float(x[i]), float(y[i]), float(z[i])),
-                         (float(tint[i, 0]), float(tint[i, 1]), float(tint[i, 2])),
-                         1.0, GRID_LIGHT_RANGE_M) for i in range(count)]
+    lights = [
+        PointLight(
+            (float(x[i]), float(y[i]), float(z[i])),
+            (float(tint[i, 0]), float(tint[i, 1]), float(tint[i, 2])),
+            1.0,
+            GRID_LIGHT_RANGE_M,
+        )
+        for i in range(count)
+    ]
     scale = shell_irradiance(four) / max(shell_irradiance(lights), 1e-12)
     for light in lights:
         light.intensity = round(scale, 6)
@@ -678,12 +783,26 @@ def build_showroom(lights: int = 4) -> Scene:
     """The furnished showroom with ``lights`` point lights (4: ceiling lights; N: jittered grid)."""
     textures = make_textures()
     mats = _showroom_materials(textures)
-    meshes = (_shell(mats) + _paintings(mats) + _door_and_switch(mats) + _window(mats)
-              + _piano(mats) + _living_area(mats) + _decor(mats))
+    meshes = (
+        _shell(mats)
+        + _paintings(mats)
+        + _door_and_switch(mats)
+        + _window(mats)
+        + _piano(mats)
+        + _living_area(mats)
+        + _decor(mats)
+    )
     name = "showroom" if lights == 4 else f"showroom-{lights}"
-    scene = Scene(name, meshes, mats.materials, mats.textures, make_lights(lights),
-                  Viewpoint(SPAWN.position, SPAWN.yaw_deg, SPAWN.pitch_deg), floor_y=0.0,
-                  source="built-in")
+    scene = Scene(
+        name,
+        meshes,
+        mats.materials,
+        mats.textures,
+        make_lights(lights),
+        Viewpoint(SPAWN.position, SPAWN.yaw_deg, SPAWN.pitch_deg),
+        floor_y=0.0,
+        source="built-in",
+    )
     return scene.sanitized()
 
 
@@ -696,7 +815,14 @@ def build_texture_test_scene() -> Scene:
     b = MeshBuilder()
     b.quad((-1.0, EYE_HEIGHT - 1.0, -2.0), (2.0, 0.0, 0.0), (0.0, 2.0, 0.0))
     material = Material("checker", (1.0, 1.0, 1.0, 1.0), 0, roughness=1.0)
-    scene = Scene("texture-test", [b.mesh("checker_quad", 0)], [material], [checker_quadrants()],
-                  [PointLight((0.0, EYE_HEIGHT, 0.0), (1.0, 1.0, 1.0), 6.0, 10.0)],
-                  Viewpoint((0.0, EYE_HEIGHT, 0.0), 0.0, 0.0), floor_y=0.0, source="built-in")
+    scene = Scene(
+        "texture-test",
+        [b.mesh("checker_quad", 0)],
+        [material],
+        [checker_quadrants()],
+        [PointLight((0.0, EYE_HEIGHT, 0.0), (1.0, 1.0, 1.0), 6.0, 10.0)],
+        Viewpoint((0.0, EYE_HEIGHT, 0.0), 0.0, 0.0),
+        floor_y=0.0,
+        source="built-in",
+    )
     return scene.sanitized()

@@ -27,9 +27,15 @@ def build_tcr_cube() -> Scene:
     mesh = b.mesh("cube", 0)
     texture = painting_abstract(512)
     light = PointLight((0.0, 4.0, 6.0), (1.0, 1.0, 1.0), 60.0, 200.0)
-    scene = Scene("tcr-cube", [mesh], [Material("cube", (1, 1, 1, 1), 0, roughness=0.8)],
-                  [texture], [light], Viewpoint((0.0, 1.6, DISTANCES_F[0] * SIDE_M)),
-                  source="built-in")
+    scene = Scene(
+        "tcr-cube",
+        [mesh],
+        [Material("cube", (1, 1, 1, 1), 0, roughness=0.8)],
+        [texture],
+        [light],
+        Viewpoint((0.0, 1.6, DISTANCES_F[0] * SIDE_M)),
+        source="built-in",
+    )
     return scene.sanitized()
 
 
@@ -44,25 +50,29 @@ def distance_path() -> CameraPath:
     return CameraPath(keys, "tcr-cube")
 
 
-def orbit_path(radius_f: float = 4.0, seconds: float = 6.0, fixed_gaze: bool = False
-               ) -> CameraPath:
+def orbit_path(radius_f: float = 4.0, seconds: float = 6.0, fixed_gaze: bool = False) -> CameraPath:
     keys = []
     steps = 48
     for i in range(steps + 1):
         a = 2 * math.pi * i / steps
         x = CENTRE[0] + math.sin(a) * radius_f * SIDE_M
         z = CENTRE[2] + math.cos(a) * radius_f * SIDE_M
-        keys.append(PathKey(seconds * i / steps, (x, CENTRE[1], z), math.degrees(a), 0.0,
-                            (0.5, 0.5), fixed_gaze))
+        keys.append(
+            PathKey(
+                seconds * i / steps, (x, CENTRE[1], z), math.degrees(a), 0.0, (0.5, 0.5), fixed_gaze
+            )
+        )
     return CameraPath(keys, "tcr-cube")
 
 
 def gaze_path() -> CameraPath:
     """Stand and hold the gaze on the cube (state 2), then orbit holding it (state 3)."""
     pos = (CENTRE[0], CENTRE[1], CENTRE[2] + 4.0 * SIDE_M)
-    keys = [PathKey(0.0, pos, 0, 0, (0.5, 0.5), False),
-            PathKey(1.0, pos, 0, 0, (0.5, 0.5), True),
-            PathKey(3.0, pos, 0, 0, (0.5, 0.5), True)]
+    keys = [
+        PathKey(0.0, pos, 0, 0, (0.5, 0.5), False),
+        PathKey(1.0, pos, 0, 0, (0.5, 0.5), True),
+        PathKey(3.0, pos, 0, 0, (0.5, 0.5), True),
+    ]
     for k in orbit_path(fixed_gaze=True).keys:
         keys.append(PathKey(3.0 + 1 / 60 + k.t, k.position, k.yaw_deg, k.pitch_deg, k.gaze, True))
     return CameraPath(keys, "tcr-cube")

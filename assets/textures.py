@@ -45,8 +45,9 @@ def _coords(size: int, aspect: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     return (t * np.float32(aspect))[None, :], t[:, None]
 
 
-def _noise(rng: np.random.Generator, size: int, sigma_x: float, sigma_y: float | None = None
-           ) -> np.ndarray:
+def _noise(
+    rng: np.random.Generator, size: int, sigma_x: float, sigma_y: float | None = None
+) -> np.ndarray:
     """Seamless Gaussian-filtered noise with zero mean and unit deviation (sigmas in pixels).
 
     Smooth noise is synthesised on a coarser periodic grid and upsampled (wrapping), which keeps
@@ -99,8 +100,9 @@ def _solid(size: int, c: tuple[int, int, int]) -> np.ndarray:
     return np.broadcast_to(_rgb(c), (size, size, 3)).copy()
 
 
-def _paint(img: np.ndarray, alpha: np.ndarray | float, c: tuple[int, int, int] | np.ndarray
-           ) -> None:
+def _paint(
+    img: np.ndarray, alpha: np.ndarray | float, c: tuple[int, int, int] | np.ndarray
+) -> None:
     """Composite colour ``c`` over ``img`` in place with coverage ``alpha`` (0..1, or a mask)."""
     col = _rgb(c) if isinstance(c, tuple) else np.asarray(c, np.float32)
     a = np.asarray(alpha)
@@ -257,9 +259,15 @@ def painting_abstract(size: int = 512) -> Texture:
     ys = np.array([0.0, 0.24, 0.63, 0.84, 1.0])
     ci = np.searchsorted(xs, x) - 1
     cj = np.searchsorted(ys, y) - 1
-    colours = {(1, 0): (196, 32, 36), (2, 0): (196, 32, 36), (0, 2): (24, 52, 148),
-               (0, 3): (24, 52, 148), (3, 3): (238, 196, 34), (3, 1): (20, 20, 22),
-               (2, 2): (230, 226, 214)}
+    colours = {
+        (1, 0): (196, 32, 36),
+        (2, 0): (196, 32, 36),
+        (0, 2): (24, 52, 148),
+        (0, 3): (24, 52, 148),
+        (3, 3): (238, 196, 34),
+        (3, 1): (20, 20, 22),
+        (2, 2): (230, 226, 214),
+    }
     for (i, j), c in colours.items():
         _paint(img, (ci == i) & (cj == j), c)
     lw = 0.012
@@ -283,14 +291,20 @@ def painting_landscape(size: int = 512) -> Texture:
     _paint(img, 0.55 * np.exp(-((sun / 0.16) ** 2)), (255, 224, 160))
     _paint(img, _smoothstep(0.062, 0.055, sun), (255, 240, 200))
     clouds = _fbm(rng, size, 18.0, 3)
-    _paint(img, 0.55 * _smoothstep(0.8, 1.8, clouds) * _smoothstep(0.55, 0.1, y),
-           (250, 232, 226))
-    layers = [(0.50, 0.05, (112, 104, 150)), (0.60, 0.06, (74, 110, 92)),
-              (0.72, 0.05, (58, 96, 52)), (0.86, 0.06, (34, 62, 30))]
+    _paint(img, 0.55 * _smoothstep(0.8, 1.8, clouds) * _smoothstep(0.55, 0.1, y), (250, 232, 226))
+    layers = [
+        (0.50, 0.05, (112, 104, 150)),
+        (0.60, 0.06, (74, 110, 92)),
+        (0.72, 0.05, (58, 96, 52)),
+        (0.86, 0.06, (34, 62, 30)),
+    ]
     for k, (base, amp, colour) in enumerate(layers):
         ph = [float(p) for p in rng.uniform(0, 2 * np.pi, 3)]
-        ridge = base - amp * (np.sin(x * 3.1 + ph[0]) + 0.5 * np.sin(x * 7.3 + ph[1])
-                              + 0.25 * np.sin(x * 17.0 + ph[2]))
+        ridge = base - amp * (
+            np.sin(x * 3.1 + ph[0])
+            + 0.5 * np.sin(x * 7.3 + ph[1])
+            + 0.25 * np.sin(x * 17.0 + ph[2])
+        )
         below = _smoothstep(-0.004, 0.004, y - ridge)
         depth = np.clip((y - ridge) * 3.0, 0, 1)[..., None]
         col = _rgb(colour) * (1.0 - 0.25 * depth)
@@ -310,9 +324,22 @@ def painting_stripes(size: int = 512) -> Texture:
     rng = _rng(13)
     aspect = PAINTING_ASPECTS["painting_stripes"]
     x, y = _coords(size, aspect)
-    palette = np.array([(232, 72, 56), (248, 178, 40), (40, 140, 120), (36, 64, 140),
-                        (240, 234, 220), (200, 60, 120), (24, 24, 30), (120, 190, 220)],
-                       np.float32) / 255.0
+    palette = (
+        np.array(
+            [
+                (232, 72, 56),
+                (248, 178, 40),
+                (40, 140, 120),
+                (36, 64, 140),
+                (240, 234, 220),
+                (200, 60, 120),
+                (24, 24, 30),
+                (120, 190, 220),
+            ],
+            np.float32,
+        )
+        / 255.0
+    )
     s = x + 0.28 * y + 0.02 * np.sin(y * 9.0)  # bands lean and waver slightly
     widths = rng.uniform(0.018, 0.07, 64).astype(np.float32)
     edges = np.cumsum(widths) - 0.1
@@ -338,9 +365,24 @@ def painting_circles(size: int = 512) -> Texture:
     ly = y / cell - cy - 0.5
     wobble = 0.006 * _noise(rng, size, 8.0)
     r = np.hypot(lx, ly) + wobble
-    palette = np.array([(210, 48, 40), (246, 196, 46), (30, 70, 160), (40, 140, 90),
-                        (236, 120, 40), (120, 40, 110), (240, 232, 214), (20, 24, 40),
-                        (110, 190, 210), (200, 110, 160)], np.float32) / 255.0
+    palette = (
+        np.array(
+            [
+                (210, 48, 40),
+                (246, 196, 46),
+                (30, 70, 160),
+                (40, 140, 90),
+                (236, 120, 40),
+                (120, 40, 110),
+                (240, 232, 214),
+                (20, 24, 40),
+                (110, 190, 210),
+                (200, 110, 160),
+            ],
+            np.float32,
+        )
+        / 255.0
+    )
     ncell = ncx * ncy
     rings = 5
     bounds = np.sort(rng.uniform(0.06, 0.42, (ncell, rings - 1)), axis=1).astype(np.float32)
@@ -389,7 +431,18 @@ def checker_quadrants() -> Texture:
 
 def make_textures() -> dict[str, Texture]:
     """Every showroom texture by name (the piano's black lacquer is colour-only)."""
-    makers = [wallpaper, parquet, ceiling, fabric, wood, rug, painting_abstract,
-              painting_landscape, painting_stripes, painting_circles, painting_colorfield]
+    makers = [
+        wallpaper,
+        parquet,
+        ceiling,
+        fabric,
+        wood,
+        rug,
+        painting_abstract,
+        painting_landscape,
+        painting_stripes,
+        painting_circles,
+        painting_colorfield,
+    ]
     textures = [make() for make in makers]
     return {t.name: t for t in textures}

@@ -30,7 +30,8 @@ def check(ctx: moderngl.Context) -> moderngl.Context:
         raise GLUnavailableError(
             f"OpenGL {REQUIRED[0]}.{REQUIRED[1]} core is required (compute shaders, shader "
             f"storage buffers, image load/store), but {renderer} offers only {version}. "
-            "Update the graphics driver, or install Mesa (Debian: libgl1-mesa-dri libegl1).")
+            "Update the graphics driver, or install Mesa (Debian: libgl1-mesa-dri libegl1)."
+        )
     return ctx
 
 
@@ -41,7 +42,8 @@ def create_headless() -> moderngl.Context:
     except Exception as exc:  # noqa: BLE001 - glcontext raises plain Exceptions
         raise GLUnavailableError(
             f"cannot create a headless OpenGL context through EGL ({exc}). Install EGL and "
-            "Mesa (Debian: libegl1 libgl1-mesa-dri) or a GPU driver with EGL.") from exc
+            "Mesa (Debian: libegl1 libgl1-mesa-dri) or a GPU driver with EGL."
+        ) from exc
     try:
         check(ctx)
     except GLUnavailableError:

@@ -66,8 +66,9 @@ def gaze_view_dir(eye: EyeView, gaze: tuple[float, float]) -> tuple[float, float
     return float(d[0]), float(d[1]), float(d[2])
 
 
-def fovea_rect(eye: EyeView, gaze: tuple[float, float], caps: tuple[float, float, float],
-               s: CpsSettings) -> tuple[int, int, int, int] | None:
+def fovea_rect(
+    eye: EyeView, gaze: tuple[float, float], caps: tuple[float, float, float], s: CpsSettings
+) -> tuple[int, int, int, int] | None:
     """A pixel rectangle (x, y, w, h from the bottom-left) holding every full-rate (level 0)
     pixel of this eye, or None when that can be anywhere.
 
@@ -89,8 +90,9 @@ def fovea_rect(eye: EyeView, gaze: tuple[float, float], caps: tuple[float, float
     a /= np.linalg.norm(a)
     b = np.cross(g, a)
     t = np.linspace(0.0, 2.0 * math.pi, 64, endpoint=False)
-    dirs = (math.cos(half) * g[None, :]
-            + math.sin(half) * (np.cos(t)[:, None] * a + np.sin(t)[:, None] * b))
+    dirs = math.cos(half) * g[None, :] + math.sin(half) * (
+        np.cos(t)[:, None] * a + np.sin(t)[:, None] * b
+    )
     if (dirs[:, 2] >= -1e-3).any():  # part of the cone is beside or behind the eye
         return None
     clip = np.c_[dirs, np.ones(len(dirs))] @ eye.projection.T
@@ -106,8 +108,13 @@ def fovea_rect(eye: EyeView, gaze: tuple[float, float], caps: tuple[float, float
     return (x0, y0, x1 - x0, y1 - y0)
 
 
-def detail_uniforms(prog: moderngl.Program, eye: EyeView, gaze: tuple[float, float],
-                    caps: tuple[float, float, float], s: CpsSettings) -> None:
+def detail_uniforms(
+    prog: moderngl.Program,
+    eye: EyeView,
+    gaze: tuple[float, float],
+    caps: tuple[float, float, float],
+    s: CpsSettings,
+) -> None:
     prog["u_size"].value = (eye.width, eye.height)
     prog["u_inv_projection"].write(gl_bytes(np.linalg.inv(eye.projection)))
     prog["u_gaze_dir"].value = gaze_view_dir(eye, gaze)
@@ -150,9 +157,19 @@ class CpsEyeTargets:
         self.prev_eye = np.zeros(3)
 
     def release(self) -> None:
-        for obj in (self.levels_fbo, self.atlas_fbo, self.filtered_fbo, self.lit_fbo,
-                    *self.temporal_fbos, self.levels, self.atlas, self.blocks, self.filtered,
-                    *self.history, self.lit):
+        for obj in (
+            self.levels_fbo,
+            self.atlas_fbo,
+            self.filtered_fbo,
+            self.lit_fbo,
+            *self.temporal_fbos,
+            self.levels,
+            self.atlas,
+            self.blocks,
+            self.filtered,
+            *self.history,
+            self.lit,
+        ):
             obj.release()
 
 
@@ -234,16 +251,16 @@ class CpsLightingPass(CpsPass):
         compute = self.stage == "compute"
         defines = lighting_defines(frame)
         if compute:
-            prog = self.shaders.compute("cps_lighting.comp.glsl",
-                                        {"MULTI_LEVEL": self.dispatch == "multi", **defines})
+            prog = self.shaders.compute(
+                "cps_lighting.comp.glsl", {"MULTI_LEVEL": self.dispatch == "multi", **defines}
+            )
         else:
             prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl", defines)
         _scene_uniforms(prog, frame)
         prog["u_background"].value = BACKGROUND
         max_level = int(min(max(cf.settings.max_level, 0), MAX_LEVEL))
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets,
-                                                     self.state.eyes)):
+        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
             w, h = tgt.size
             deferred_inputs(prog, frame, eye, tgt)
             cps.levels.use(4)
@@ -263,15 +280,17 @@ class CpsLightingPass(CpsPass):
                     ox, oy = cps.atlas_offsets[s]
                     cps.atlas_fbo.viewport = (ox, oy, -(-w // (1 << s)), -(-h // (1 << s)))
                     # Level 0 lies in the fovea: the full-size pass only covers that.
-                    cps.atlas_fbo.scissor = fovea_rect(eye, frame.gaze, cf.caps[index],
-                                                       cf.settings) if s == 0 else None
+                    cps.atlas_fbo.scissor = (
+                        fovea_rect(eye, frame.gaze, cf.caps[index], cf.settings) if s == 0 else None
+                    )
                     prog["u_level"].value = s
                     prog["u_atlas_offset"].value = (ox, oy)
                     self.fullscreen(prog)
                 cps.atlas_fbo.scissor = None
         if compute:
-            self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
-                                    | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+            self.ctx.memory_barrier(
+                moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+            )
 
 
 class CpsFilterPass(CpsPass):
@@ -287,9 +306,15 @@ class CpsFilterPass(CpsPass):
         cf = self.state.frame
         assert cf is not None
         kind = cf.settings.filter
-        prog = self.shaders.program("fullscreen.vert.glsl", "cps_filter.frag.glsl", {
-            "FROM_ATLAS": self.from_atlas, "FILTER_HIERARCHICAL": kind == "hierarchical",
-            "FILTER_BILINEAR": kind == "bilinear"})
+        prog = self.shaders.program(
+            "fullscreen.vert.glsl",
+            "cps_filter.frag.glsl",
+            {
+                "FROM_ATLAS": self.from_atlas,
+                "FILTER_HIERARCHICAL": kind == "hierarchical",
+                "FILTER_BILINEAR": kind == "bilinear",
+            },
+        )
         self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         for tgt, cps in zip(frame.targets, self.state.eyes):
@@ -319,10 +344,12 @@ class CpsMaskPass(CpsPass):
         cf = self.state.frame
         assert cf is not None
         black = self.state.mode == "black-mask"
-        prog = self.shaders.program("fullscreen.vert.glsl", "cps_mask.frag.glsl",
-                                    {"BLACK_MASK": black})
-        self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT
-                                | moderngl.TEXTURE_FETCH_BARRIER_BIT)
+        prog = self.shaders.program(
+            "fullscreen.vert.glsl", "cps_mask.frag.glsl", {"BLACK_MASK": black}
+        )
+        self.ctx.memory_barrier(
+            moderngl.FRAMEBUFFER_BARRIER_BIT | moderngl.TEXTURE_FETCH_BARRIER_BIT
+        )
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
             self.ctx.copy_framebuffer(cps.lit_fbo, tgt.forward)
@@ -344,8 +371,9 @@ class CpsTemporalPass(CpsPass):
         cf = self.state.frame
         assert cf is not None
         s = cf.settings
-        prog = self.shaders.program("fullscreen.vert.glsl", "cps_temporal.frag.glsl",
-                                    {"REPROJECT": s.reproject})
+        prog = self.shaders.program(
+            "fullscreen.vert.glsl", "cps_temporal.frag.glsl", {"REPROJECT": s.reproject}
+        )
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
             weak = (cf.frame_index + index) % 2 == 1  # this frame is the finer one

@@ -41,14 +41,25 @@ class GpuScene:
             colors = m.colors if m.colors is not None else np.ones_like(m.positions)
             data = np.hstack([m.positions, m.normals, m.uvs, colors]).astype(np.float32)
             mat = scene.materials[m.material]
-            self.meshes.append(GpuMesh(m.name, ctx.buffer(data.tobytes()),
-                                       ctx.buffer(m.indices.astype(np.uint32).tobytes()), mat,
-                                       mat.texture, int(m.indices.size)))
+            self.meshes.append(
+                GpuMesh(
+                    m.name,
+                    ctx.buffer(data.tobytes()),
+                    ctx.buffer(m.indices.astype(np.uint32).tobytes()),
+                    mat,
+                    mat.texture,
+                    int(m.indices.size),
+                )
+            )
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self.lights = light_buffer_data(scene)
         if len(self.lights) > MAX_LIGHTS:
-            log.warning("%s has %d lights; only the first %d are drawn", scene.name,
-                        len(self.lights), MAX_LIGHTS)
+            log.warning(
+                "%s has %d lights; only the first %d are drawn",
+                scene.name,
+                len(self.lights),
+                MAX_LIGHTS,
+            )
             self.lights = self.lights[:MAX_LIGHTS]
         block = np.zeros((2, MAX_LIGHTS, 4), np.float32)  # std140: positions, then colours
         block[0, : len(self.lights)] = self.lights[:, :4]
@@ -60,10 +71,13 @@ class GpuScene:
         if key not in self._vaos:
             mesh = self.meshes[index]
             attrs = [a for a in VERTEX_ATTRS if a in program]
-            fmt = " ".join(f if a in attrs else f[0] + "x4" for f, a in
-                           zip(VERTEX_FORMAT.split(), VERTEX_ATTRS))
+            fmt = " ".join(
+                f if a in attrs else f[0] + "x4"
+                for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS)
+            )
             self._vaos[key] = self.ctx.vertex_array(
-                program, [(mesh.vbo, fmt, *attrs)], index_buffer=mesh.ibo, index_element_size=4)
+                program, [(mesh.vbo, fmt, *attrs)], index_buffer=mesh.ibo, index_element_size=4
+            )
         return self._vaos[key]
 
     def release(self) -> None:
@@ -83,11 +97,13 @@ class GpuScene:
 
     def texture_levels(self) -> list[int]:
         """Pyramid depth n of each mesh's texture (0 for untextured meshes)."""
-        return [self.streamer.n_levels(m.texture) if m.texture is not None else 0
-                for m in self.meshes]
+        return [
+            self.streamer.n_levels(m.texture) if m.texture is not None else 0 for m in self.meshes
+        ]
 
 
 def light_buffer_data(scene: Scene) -> np.ndarray:
-    rows = [(*light.position, light.range_m, *light.color, light.intensity)
-            for light in scene.lights]
+    rows = [
+        (*light.position, light.range_m, *light.color, light.intensity) for light in scene.lights
+    ]
     return np.asarray(rows, np.float32).reshape(-1, 8)

@@ -18,8 +18,13 @@ from render.renderer import Renderer
 
 
 class OffscreenHost:
-    def __init__(self, width: int, height: int, settings: Settings | None = None,
-                 trace_progress: Callable[[float], None] | None = None) -> None:
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        settings: Settings | None = None,
+        trace_progress: Callable[[float], None] | None = None,
+    ) -> None:
         """``width`` x ``height`` is the whole side-by-side view (each eye is width/2).
 
         A scene that wants indirect light gets its photon map traced here, blocking, before

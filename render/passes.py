@@ -54,18 +54,41 @@ class EyeTargets:
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
     def release(self) -> None:
-        for obj in (self.gbuffer, self.forward, self.albedo, self.normal, self.depth, self.color,
-                    self.tile_counts, self.tile_lists, *self.bounds_fbos, *self.bounds):
+        for obj in (
+            self.gbuffer,
+            self.forward,
+            self.albedo,
+            self.normal,
+            self.depth,
+            self.color,
+            self.tile_counts,
+            self.tile_lists,
+            *self.bounds_fbos,
+            *self.bounds,
+        ):
             obj.release()
 
 
 # CPS detail visualisation (paper Fig. 2): finest unpainted, then blue, cyan, green, yellow, red.
-CPS_LEVEL_COLOURS = ((1.0, 1.0, 1.0), (0.15, 0.35, 1.0), (0.0, 0.9, 0.9), (0.1, 0.85, 0.1),
-                     (1.0, 0.95, 0.0), (1.0, 0.1, 0.1))
+CPS_LEVEL_COLOURS = (
+    (1.0, 1.0, 1.0),
+    (0.15, 0.35, 1.0),
+    (0.0, 0.9, 0.9),
+    (0.1, 0.85, 0.1),
+    (1.0, 0.95, 0.0),
+    (1.0, 0.1, 0.1),
+)
 
 # Level legend for the TCR tint: level 0 unpainted, then blue, cyan, green, yellow, orange, red.
-LEVEL_TINTS = ((1.0, 1.0, 1.0), (0.15, 0.35, 1.0), (0.0, 0.9, 0.9), (0.1, 0.85, 0.1),
-               (1.0, 0.95, 0.0), (1.0, 0.55, 0.0), (1.0, 0.1, 0.1))
+LEVEL_TINTS = (
+    (1.0, 1.0, 1.0),
+    (0.15, 0.35, 1.0),
+    (0.0, 0.9, 0.9),
+    (0.1, 0.85, 0.1),
+    (1.0, 0.95, 0.0),
+    (1.0, 0.55, 0.0),
+    (1.0, 0.1, 0.1),
+)
 
 
 def level_tint(level: int) -> tuple[float, float, float]:
@@ -136,14 +159,18 @@ class RenderPass:
 
 
 def _scene_uniforms(prog: moderngl.Program, frame: FrameContext) -> None:
-    for name, value in (("u_light_count", len(frame.scene.lights)),
-                        ("u_light_scale", frame.light_scale), ("u_ambient", frame.ambient)):
+    for name, value in (
+        ("u_light_count", len(frame.scene.lights)),
+        ("u_light_scale", frame.light_scale),
+        ("u_ambient", frame.ambient),
+    ):
         if name in prog:
             prog[name].value = value
 
 
-def _draw_meshes(ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameContext,
-                 eye: EyeView, fragment: str) -> None:
+def _draw_meshes(
+    ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameContext, eye: EyeView, fragment: str
+) -> None:
     """Draw every mesh for one eye with its material (texture and TCR mode as variants)."""
     streamer = frame.scene.streamer
     tcr = frame.levels is not None
@@ -222,21 +249,25 @@ class LightingPass(RenderPass):
                 self.fullscreen(prog)
             self.samples += w * h
         if self.stage == "compute":
-            self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
-                                    | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+            self.ctx.memory_barrier(
+                moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+            )
 
 
 def lighting_defines(frame: FrameContext) -> dict[str, object]:
     """The deferred.glsl variant this frame needs (tile lists, photon-map indirect light)."""
-    defines: dict[str, object] = {"TILED_LIGHTS": frame.culled,
-                                  "INDIRECT": frame.indirect is not None}
+    defines: dict[str, object] = {
+        "TILED_LIGHTS": frame.culled,
+        "INDIRECT": frame.indirect is not None,
+    }
     if frame.fused_photons is not None:
         defines.update(INDIRECT_FUSED=True, **frame.fused_photons[1])
     return defines
 
 
-def deferred_inputs(prog: moderngl.Program, frame: FrameContext, eye: EyeView,
-                    tgt: EyeTargets) -> None:
+def deferred_inputs(
+    prog: moderngl.Program, frame: FrameContext, eye: EyeView, tgt: EyeTargets
+) -> None:
     """What deferred.glsl's light_texel reads for one eye: the G-buffer (units 1-3), the tile
     light lists, the indirect light (unit 8), the eye and the viewport size."""
     if frame.indirect is not None and "u_indirect" in prog:
@@ -271,8 +302,9 @@ class LightCullPass(RenderPass):
     name = "light_cull"
 
     def execute(self, frame: FrameContext) -> None:
-        first = self.shaders.program("fullscreen.vert.glsl", "depth_bounds.frag.glsl",
-                                     {"FROM_DEPTH": True})
+        first = self.shaders.program(
+            "fullscreen.vert.glsl", "depth_bounds.frag.glsl", {"FROM_DEPTH": True}
+        )
         step = self.shaders.program("fullscreen.vert.glsl", "depth_bounds.frag.glsl")
         cull = self.shaders.compute("light_cull.comp.glsl")
         frame.scene.light_buffer.bind_to_uniform_block(0)
@@ -303,8 +335,9 @@ class LightCullPass(RenderPass):
             cull["u_size"].value = tgt.size
             cull["u_tiles"].value = tgt.tiles
             cull.run(-(-tgt.tiles[0] // 8), -(-tgt.tiles[1] // 8))
-        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
-                                | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        self.ctx.memory_barrier(
+            moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+        )
 
     @staticmethod
     def evaluations(targets: list[EyeTargets], light_count: int) -> dict[str, int]:
@@ -389,8 +422,11 @@ class PresentPass(RenderPass):
     def execute(self, frame: FrameContext) -> None:
         visualize = frame.level_maps is not None
         show_reuse = frame.show_reuse and frame.indirect is not None
-        prog = self.shaders.program("fullscreen.vert.glsl", "present.frag.glsl",
-                                    {"VISUALIZE": visualize, "SHOW_REUSE": show_reuse})
+        prog = self.shaders.program(
+            "fullscreen.vert.glsl",
+            "present.frag.glsl",
+            {"VISUALIZE": visualize, "SHOW_REUSE": show_reuse},
+        )
         if visualize:
             prog["u_levels"].value = 1
         if show_reuse:
@@ -441,8 +477,9 @@ class OverlayPass(RenderPass):
             self._heat_tex = None
         if rgba is not None:
             h, w = rgba.shape[:2]
-            self._heat_tex = self.ctx.texture((w, h), 4,
-                                              np.ascontiguousarray(np.flipud(rgba)).tobytes())
+            self._heat_tex = self.ctx.texture(
+                (w, h), 4, np.ascontiguousarray(np.flipud(rgba)).tobytes()
+            )
             self._heat_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
     def set_text_image(self, rgba: np.ndarray | None) -> None:
@@ -475,8 +512,12 @@ class OverlayPass(RenderPass):
         ctx = self.ctx
         ctx.enable(moderngl.BLEND)
         # Colour blends; destination alpha stays 1, or Qt composites the view as translucent.
-        ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ZERO,
-                          moderngl.ONE)
+        ctx.blend_func = (
+            moderngl.SRC_ALPHA,
+            moderngl.ONE_MINUS_SRC_ALPHA,
+            moderngl.ZERO,
+            moderngl.ONE,
+        )
         if self._heat_tex is not None and self.show_heat:
             heat = self.shaders.program("fullscreen.vert.glsl", "heatmap.frag.glsl")
             self._heat_tex.use(0)
@@ -513,8 +554,9 @@ class OverlayPass(RenderPass):
             for px, py in points:
                 if -3 <= px <= w + 2 and -3 <= py <= h + 2:  # on the view's edge: kept inside
                     px, py = min(max(px, 2), w - 3), min(max(py, 2), h - 3)
-                    frame.out.clear(1.0, 0.0, 1.0, 1.0, viewport=(x0 + e * w + px - 2,
-                                                                 y0 + py - 2, 5, 5))
+                    frame.out.clear(
+                        1.0, 0.0, 1.0, 1.0, viewport=(x0 + e * w + px - 2, y0 + py - 2, 5, 5)
+                    )
 
     def release(self) -> None:
         super().release()

@@ -41,8 +41,14 @@ from render.shaders import ShaderLibrary
 VARIANTS = ("radius", "radius-half", "heap", "kdtree", "kdtree-heap", "shared")
 STRUCTURES = ("grid", "grid-half", "kdtree")
 # The structure each variant reads; "heap" and "shared" also run on a "grid-half" map.
-STRUCTURE_OF = {"radius": "grid", "radius-half": "grid-half", "heap": "grid",
-                "kdtree": "kdtree", "kdtree-heap": "kdtree", "shared": "grid"}
+STRUCTURE_OF = {
+    "radius": "grid",
+    "radius-half": "grid-half",
+    "heap": "grid",
+    "kdtree": "kdtree",
+    "kdtree-heap": "kdtree",
+    "shared": "grid",
+}
 MAX_K = 64  # the heap lives in registers / private memory; the shader refuses more
 GROUP = 64  # invocations per work group in both entries (8x8 and 64x1); SHARED relies on it
 NO_WINNER = 0xFFFFFFFF  # u_reuse_winner's "no left pixel lands here"
@@ -58,17 +64,20 @@ BIND_PHOTONS, BIND_START, BIND_COUNTERS, BIND_POINTS, BIND_NORMALS, BIND_OUT = 0
 SOURCES = ("texture", "ssbo")  # where the gather reads the records and the start array
 
 
-def _texture_rows(ctx: moderngl.Context, words: np.ndarray, components: int,
-                  what: str) -> moderngl.Texture:
+def _texture_rows(
+    ctx: moderngl.Context, words: np.ndarray, components: int, what: str
+) -> moderngl.Texture:
     """``words`` (uint32, ``components`` per texel) as a TEX_WIDTH-wide unsigned texture."""
     texels = max(1, -(-words.size // components))
     rows = -(-texels // TEX_WIDTH)
     limit = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
     if rows > limit:
-        raise ValueError(f"photon map too large for one texture: {what} needs {rows} rows of "
-                         f"{TEX_WIDTH} texels, the driver allows {limit}")
+        raise ValueError(
+            f"photon map too large for one texture: {what} needs {rows} rows of "
+            f"{TEX_WIDTH} texels, the driver allows {limit}"
+        )
     data = np.zeros(rows * TEX_WIDTH * components, np.uint32)
-    data[:words.size] = words.ravel()
+    data[: words.size] = words.ravel()
     tex = ctx.texture((TEX_WIDTH, rows), components, data.tobytes(), dtype="u4")
     tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
     return tex
@@ -83,8 +92,9 @@ class GpuPhotonMap:
     radius or the kd-tree. Zero photons work (every estimate is 0).
     """
 
-    def __init__(self, ctx: moderngl.Context, photons: PhotonMap, radius: float,
-                 structure: str = "grid") -> None:
+    def __init__(
+        self, ctx: moderngl.Context, photons: PhotonMap, radius: float, structure: str = "grid"
+    ) -> None:
         if structure not in STRUCTURES:
             raise ValueError(f"unknown photon map structure {structure!r}; one of {STRUCTURES}")
         radius = check_radius(radius)
@@ -100,8 +110,9 @@ class GpuPhotonMap:
             records = photons.records(self.tree.order, self.tree.axis.astype(np.uint32))
             start = np.zeros(1, np.uint32)
         else:
-            self.grid = HashGrid.build(photons.positions, radius,
-                                       cells_per_radius=2 if structure == "grid-half" else 1)
+            self.grid = HashGrid.build(
+                photons.positions, radius, cells_per_radius=2 if structure == "grid-half" else 1
+            )
             records = photons.records(self.grid.order)
             start = np.ascontiguousarray(self.grid.start, np.uint32)
         self.build_ms = (time.perf_counter() - t0) * 1e3
@@ -109,8 +120,9 @@ class GpuPhotonMap:
         self.photons = ctx.buffer(records if records else bytes(32))
         self.start = ctx.buffer(start.tobytes() if start.size else bytes(4))
         # The same bytes as textures, which is what the gather reads by default.
-        self.records_texture = _texture_rows(ctx, np.frombuffer(records, np.uint32), 4,
-                                             "the photon records")
+        self.records_texture = _texture_rows(
+            ctx, np.frombuffer(records, np.uint32), 4, "the photon records"
+        )
         self.starts_texture = _texture_rows(ctx, start, 1, "the grid's start array")
 
     @property
@@ -135,12 +147,17 @@ class GpuPhotonMap:
             self.starts_texture.use(UNIT_STARTS)
             prog["u_pm_starts"].value = UNIT_STARTS
         r2 = self.radius * self.radius
-        values: dict[str, Any] = {"u_pm_count": self.photon_count, "u_pm_radius2": r2,
-                                  "u_pm_norm": 1.0 / (math.pi * r2)}
+        values: dict[str, Any] = {
+            "u_pm_count": self.photon_count,
+            "u_pm_radius2": r2,
+            "u_pm_norm": 1.0 / (math.pi * r2),
+        }
         if self.grid is not None:
-            values.update(u_pm_origin=tuple(float(v) for v in self.grid.origin),
-                          u_pm_cell=float(self.grid.cell),
-                          u_pm_dims=tuple(int(v) for v in self.grid.dims))
+            values.update(
+                u_pm_origin=tuple(float(v) for v in self.grid.origin),
+                u_pm_cell=float(self.grid.cell),
+                u_pm_dims=tuple(int(v) for v in self.grid.dims),
+            )
         for name, value in values.items():
             if name in prog:
                 prog[name].value = value
@@ -153,8 +170,9 @@ class GpuPhotonMap:
 class PhotonGather:
     """Runs the gather variants; programs come from the (caching) ShaderLibrary."""
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary,
-                 source: str = "texture") -> None:
+    def __init__(
+        self, ctx: moderngl.Context, shaders: ShaderLibrary, source: str = "texture"
+    ) -> None:
         if source not in SOURCES:
             raise ValueError(f"unknown photon record source {source!r}; one of {SOURCES}")
         self.ctx = ctx
@@ -171,11 +189,12 @@ class PhotonGather:
         want = STRUCTURE_OF[variant]
         kd = want == "kdtree"
         if kd != (gmap.structure == "kdtree") or (
-                variant in ("radius", "radius-half") and gmap.structure != want):
-            raise ValueError(f"variant {variant!r} needs a {want!r} photon map, "
-                             f"not {gmap.structure!r}")
-        d: dict[str, object] = {"KDTREE": True} if kd else {"GRID": True,
-                                                            "GRID_REACH": gmap.reach}
+            variant in ("radius", "radius-half") and gmap.structure != want
+        ):
+            raise ValueError(
+                f"variant {variant!r} needs a {want!r} photon map, not {gmap.structure!r}"
+            )
+        d: dict[str, object] = {"KDTREE": True} if kd else {"GRID": True, "GRID_REACH": gmap.reach}
         if variant in ("heap", "kdtree-heap"):
             k = int(k)
             if not 1 <= k <= MAX_K:
@@ -187,9 +206,15 @@ class PhotonGather:
             d["PM_SSBO"] = True
         return d
 
-    def gather_points(self, gmap: GpuPhotonMap, points: np.ndarray, normals: np.ndarray,
-                      variant: str = "radius", k: int = 32, count: bool | None = None
-                      ) -> np.ndarray:
+    def gather_points(
+        self,
+        gmap: GpuPhotonMap,
+        points: np.ndarray,
+        normals: np.ndarray,
+        variant: str = "radius",
+        k: int = 32,
+        count: bool | None = None,
+    ) -> np.ndarray:
         """E at each point (M, 3) float32; ``normals`` are unit (M, 3). ``count`` adds the
         counters (visited / within photons, points as "gathered")."""
         pts = np.asarray(points, np.float32).reshape(-1, 3)
@@ -208,8 +233,11 @@ class PhotonGather:
             v[:, :3] = a
             return v.tobytes()
 
-        bufs = [self.ctx.buffer(vec4s(pts)), self.ctx.buffer(vec4s(nrm)),
-                self.ctx.buffer(reserve=16 * m)]
+        bufs = [
+            self.ctx.buffer(vec4s(pts)),
+            self.ctx.buffer(vec4s(nrm)),
+            self.ctx.buffer(reserve=16 * m),
+        ]
         try:
             for binding, buf in zip((BIND_POINTS, BIND_NORMALS, BIND_OUT), bufs):
                 buf.bind_to_storage_buffer(binding)
@@ -224,12 +252,22 @@ class PhotonGather:
                 buf.release()
         return out
 
-    def gather_image(self, gmap: GpuPhotonMap, variant: str, *, depth: moderngl.Texture,
-                     normal: moderngl.Texture, inv_view_projection: np.ndarray,
-                     size: tuple[int, int], out: moderngl.Texture, k: int = 32,
-                     block_rate: bool = False, levels: moderngl.Texture | None = None,
-                     reuse: tuple[moderngl.Texture, moderngl.Texture] | None = None,
-                     count: bool | None = None) -> None:
+    def gather_image(
+        self,
+        gmap: GpuPhotonMap,
+        variant: str,
+        *,
+        depth: moderngl.Texture,
+        normal: moderngl.Texture,
+        inv_view_projection: np.ndarray,
+        size: tuple[int, int],
+        out: moderngl.Texture,
+        k: int = 32,
+        block_rate: bool = False,
+        levels: moderngl.Texture | None = None,
+        reuse: tuple[moderngl.Texture, moderngl.Texture] | None = None,
+        count: bool | None = None,
+    ) -> None:
         """E per G-buffer pixel into ``out`` (rgba32f, image unit 0): rgb = E, a = 1 gathered,
         2 copied from the left eye, 0 background; pixels it does not own are left alone.
 
@@ -241,8 +279,11 @@ class PhotonGather:
         defines = self.defines(gmap, variant, k)
         if block_rate and levels is None:
             raise ValueError("block_rate needs the CPS level map (levels=)")
-        defines.update(BLOCK_RATE=bool(block_rate), REUSE=reuse is not None,
-                       COUNT=self.counting if count is None else bool(count))
+        defines.update(
+            BLOCK_RATE=bool(block_rate),
+            REUSE=reuse is not None,
+            COUNT=self.counting if count is None else bool(count),
+        )
         prog = self.shaders.compute("photon_gather.comp.glsl", defines)
         w, h = int(size[0]), int(size[1])
         gmap.bind(prog)
@@ -263,16 +304,20 @@ class PhotonGather:
             prog["u_left_result"].value = UNIT_LEFT
         out.bind_to_image(0, read=False, write=True)
         prog.run(-(-w // 8), -(-h // 8))
-        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
-                                | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        self.ctx.memory_barrier(
+            moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+        )
 
     def counters(self) -> dict[str, int]:
         """Counts since reset_counters() (only runs with ``count=True`` add to them)."""
-        self.ctx.memory_barrier(moderngl.BUFFER_UPDATE_BARRIER_BIT
-                                | moderngl.SHADER_STORAGE_BARRIER_BIT)
+        self.ctx.memory_barrier(
+            moderngl.BUFFER_UPDATE_BARRIER_BIT | moderngl.SHADER_STORAGE_BARRIER_BIT
+        )
         words = np.frombuffer(self._counters.read(), np.uint32).astype(np.uint64)
-        return {name: int(words[2 * i] + (words[2 * i + 1] << np.uint64(32)))
-                for i, name in enumerate(COUNTER_NAMES)}
+        return {
+            name: int(words[2 * i] + (words[2 * i + 1] << np.uint64(32)))
+            for i, name in enumerate(COUNTER_NAMES)
+        }
 
     def reset_counters(self) -> None:
         self._counters.write(bytes(self._counters.size))

@@ -117,12 +117,21 @@ class PhotonPass(RenderPass):
             if index == 1 and reuse:
                 reuse_input = self._scatter(frame, levels)
             self.gather.gather_image(
-                gmap, s.gather, depth=tgt.depth, normal=tgt.normal,
-                inv_view_projection=eye.inverse_view_projection, size=size, out=out, k=s.k,
-                block_rate=self.block_rate, levels=levels[index] if levels else None,
-                reuse=reuse_input)
-            self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT
-                                    | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+                gmap,
+                s.gather,
+                depth=tgt.depth,
+                normal=tgt.normal,
+                inv_view_projection=eye.inverse_view_projection,
+                size=size,
+                out=out,
+                k=s.k,
+                block_rate=self.block_rate,
+                levels=levels[index] if levels else None,
+                reuse=reuse_input,
+            )
+            self.ctx.memory_barrier(
+                moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+            )
             self.eye_ms[index] = self._mark() - start if self.measure else 0.0
         frame.indirect = list(self.outputs)
         frame.show_reuse = s.show_reuse and reuse
@@ -154,23 +163,31 @@ class PhotonPass(RenderPass):
         self.winner.bind_to_image(3, read=True, write=True)
         w, h = tl.size
         prog.run(-(-w // 8), -(-h // 8))
-        self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
-                                | moderngl.TEXTURE_FETCH_BARRIER_BIT)
+        self.ctx.memory_barrier(
+            moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT | moderngl.TEXTURE_FETCH_BARRIER_BIT
+        )
         return (self.winner, self.outputs[0])
 
     # -- statistics ----------------------------------------------------------------------------
     def reuse_stats(self) -> dict:
         """Right-eye pixels reused from the left eye and gathered, from the last frame (read
         back on request)."""
-        if (len(self.outputs) < 2 or self.photons is None or self.gmap is None
-                or self.settings.fused):
+        if (
+            len(self.outputs) < 2
+            or self.photons is None
+            or self.gmap is None
+            or self.settings.fused
+        ):
             return {}
         tex = self.outputs[1]
         alpha = np.frombuffer(tex.read(), np.float32).reshape(-1, 4)[:, 3]
         reused = int(np.count_nonzero(alpha == 2.0))
         gathered = int(np.count_nonzero(alpha == 1.0))
-        return {"reused": reused, "gathered": gathered,
-                "reuse_share": reused / max(1, reused + gathered)}
+        return {
+            "reused": reused,
+            "gathered": gathered,
+            "reuse_share": reused / max(1, reused + gathered),
+        }
 
     def read_indirect(self, eye: int) -> np.ndarray:
         """One eye's irradiance target as (H, W, 4) float32, row 0 at the top."""

@@ -41,11 +41,18 @@ class QualityProbe:
         fbo.clear(0.0, 0.0, 0.0, 1.0)
         renderer.render(frame, fbo)
         data = fbo.read(components=3, alignment=1)
-        return np.ascontiguousarray(np.flipud(
-            np.frombuffer(data, np.uint8).reshape(size[1], size[0], 3)))
+        return np.ascontiguousarray(
+            np.flipud(np.frombuffer(data, np.uint8).reshape(size[1], size[0], 3))
+        )
 
-    def measure(self, live: Renderer, scene: Scene, photons: PhotonMap | None,
-                frame: FrameInput, horizontal_fov_deg: float) -> dict:
+    def measure(
+        self,
+        live: Renderer,
+        scene: Scene,
+        photons: PhotonMap | None,
+        frame: FrameInput,
+        horizontal_fov_deg: float,
+    ) -> dict:
         """Error figures of the live settings against full quality for ``frame`` (the GL
         context current): frame / fovea / periphery metrics, the two images and a heat map."""
         eye = frame.eyes[0]
@@ -70,8 +77,13 @@ class QualityProbe:
         reference = self._draw(self.reference, frame, size)
         ppd = pixels_per_degree(eye.width, horizontal_fov_deg)
         report = measure(reference, test, stereo_fovea(live.settings.cps, frame), ppd)
-        report.update(test=test, reference=reference, heat=heat_map(report["flip_map"]),
-                      pixels_per_degree=ppd, errors=self.reference.errors)
+        report.update(
+            test=test,
+            reference=reference,
+            heat=heat_map(report["flip_map"]),
+            pixels_per_degree=ppd,
+            errors=self.reference.errors,
+        )
         return report
 
     def _release_target(self) -> None:

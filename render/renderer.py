@@ -68,9 +68,20 @@ class Renderer:
         self.light_cull = LightCullPass(ctx, self.shaders)
         self.photons = PhotonPass(ctx, self.shaders)
         self.passes: list[RenderPass] = [
-            self.gbuffer, self.light_cull, self.cps_levels, self.photons, self.lighting,
-            self.cps_lighting, self.cps_filter, self.cps_temporal, self.cps_mask, self.emissive,
-            self.forward, self.present, self.overlay]
+            self.gbuffer,
+            self.light_cull,
+            self.cps_levels,
+            self.photons,
+            self.lighting,
+            self.cps_lighting,
+            self.cps_filter,
+            self.cps_temporal,
+            self.cps_mask,
+            self.emissive,
+            self.forward,
+            self.present,
+            self.overlay,
+        ]
         self.gpu_scene: GpuScene | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
@@ -100,8 +111,9 @@ class Renderer:
         for fragment in ("gbuffer.frag.glsl", "forward.frag.glsl"):
             for textured in (False, True):
                 for extra in modes:
-                    self.shaders.program("geometry.vert.glsl", fragment,
-                                         {"HAS_TEXTURE": textured, **extra})
+                    self.shaders.program(
+                        "geometry.vert.glsl", fragment, {"HAS_TEXTURE": textured, **extra}
+                    )
         self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
         self.shaders.compute("lighting.comp.glsl")
         for fragment in ("lighting.frag.glsl", "present.frag.glsl", "overlay.frag.glsl"):
@@ -115,8 +127,9 @@ class Renderer:
         self.targets = [EyeTargets(self.ctx, width, height) for _ in range(2)]
 
     # -- the frame -----------------------------------------------------------------------------
-    def render(self, frame: FrameInput, out: moderngl.Framebuffer,
-               origin: tuple[int, int] = (0, 0)) -> None:
+    def render(
+        self, frame: FrameInput, out: moderngl.Framebuffer, origin: tuple[int, int] = (0, 0)
+    ) -> None:
         r = self.settings.render
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
@@ -135,19 +148,31 @@ class Renderer:
         self.overlay.enabled = True
         self.overlay.show_text = r.overlay
         ctx = FrameContext(
-            eyes=frame.eyes, targets=self.targets, scene=self.gpu_scene or self._empty,
-            light_scale=r.brightness, ambient=r.ambient * r.brightness, exposure=r.exposure,
-            out=out, out_origin=origin, gaze=frame.gaze, gaze_fixed=frame.gaze_fixed,
+            eyes=frame.eyes,
+            targets=self.targets,
+            scene=self.gpu_scene or self._empty,
+            light_scale=r.brightness,
+            ambient=r.ambient * r.brightness,
+            exposure=r.exposure,
+            out=out,
+            out_origin=origin,
+            gaze=frame.gaze,
+            gaze_fixed=frame.gaze_fixed,
             levels=frame.levels if self.settings.tcr.enabled else None,
-            tcr_mode=self.settings.tcr.mode, tint=self.settings.tcr.tint,
-            culled=self.light_cull.enabled)
+            tcr_mode=self.settings.tcr.mode,
+            tint=self.settings.tcr.tint,
+            culled=self.light_cull.enabled,
+        )
         if cps.visualize and self.cps_levels.enabled:
             ctx.level_maps = [e.levels for e in self.cps.eyes]
             ctx.markers = _project_hits(frame)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
-            scene.streamer.update(finest_per_texture(
-                ctx.levels, [m.texture for m in scene.meshes], len(scene.streamer.resident)))
+            scene.streamer.update(
+                finest_per_texture(
+                    ctx.levels, [m.texture for m in scene.meshes], len(scene.streamer.resident)
+                )
+            )
         else:
             ctx.levels = None
             scene.streamer.update([0] * len(scene.streamer.resident))
@@ -190,9 +215,11 @@ class Renderer:
         levels = np.concatenate([m.ravel() for m in maps])
         counts = np.bincount(levels, minlength=6)[:6]
         blocks = float(np.sum(counts / 4.0 ** np.arange(6)))
-        return {"level_share": (counts / max(1, levels.size)).tolist(),
-                "shaded_samples": int(round(blocks)) if self.cps_lighting.enabled
-                else int(levels.size), "full_samples": int(levels.size)}
+        return {
+            "level_share": (counts / max(1, levels.size)).tolist(),
+            "shaded_samples": int(round(blocks)) if self.cps_lighting.enabled else int(levels.size),
+            "full_samples": int(levels.size),
+        }
 
     def photon_stats(self) -> dict:
         """Photons on the GPU, the grid, gather time and the right eye's reuse share of the
@@ -206,8 +233,9 @@ class Renderer:
         g = p.gmap
         if g is not None and g.grid is not None:
             x, y, z = g.grid.dims
-            out["grid"] = f"{x}x{y}x{z} cells of {100 * g.grid.cell:.3g} cm, built in " \
-                          f"{g.build_ms:.0f} ms"
+            out["grid"] = (
+                f"{x}x{y}x{z} cells of {100 * g.grid.cell:.3g} cm, built in {g.build_ms:.0f} ms"
+            )
         elif g is not None:
             out["grid"] = f"kd-tree of {g.photon_count:,} photons, built in {g.build_ms:.0f} ms"
         if p.enabled:
@@ -219,9 +247,17 @@ class Renderer:
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
         ctx = FrameContext(
-            eyes=frame.eyes, targets=self.targets, scene=self.gpu_scene or self._empty,
-            light_scale=0.0, ambient=0.0, exposure=1.0, out=self.ctx.screen,
-            out_origin=(0, 0), gaze=frame.gaze, gaze_fixed=frame.gaze_fixed)
+            eyes=frame.eyes,
+            targets=self.targets,
+            scene=self.gpu_scene or self._empty,
+            light_scale=0.0,
+            ambient=0.0,
+            exposure=1.0,
+            out=self.ctx.screen,
+            out_origin=(0, 0),
+            gaze=frame.gaze,
+            gaze_fixed=frame.gaze_fixed,
+        )
         self.ids.run(ctx)
         return self.ids.result
 
@@ -273,7 +309,6 @@ class Renderer:
             self.gpu_scene.release()
         self._empty.release()
         self.shaders.release()
-
 
 
 def _project_hits(frame: FrameInput) -> list[list[tuple[int, int]]]:

@@ -78,12 +78,17 @@ def assemble(name: str, defines: dict[str, object] | None = None, reader=None) -
     if m is None:
         raise ShaderError(f"{name}:1: the first line must be '#version {MIN_VERSION}' or later")
     if int(m.group(1)) < MIN_VERSION:
-        raise ShaderError(f"{name}:{where[first][1]}: #version {m.group(1)} is older than "
-                          f"{MIN_VERSION} (compute shaders and SSBOs need 4.3)")
-    injected = [f"#define {k} {'' if v is True else v}".rstrip() for k, v in
-                sorted((defines or {}).items()) if v is not False and v is not None]
-    out[first + 1:first + 1] = injected
-    where[first + 1:first + 1] = [("<defines>", i + 1) for i in range(len(injected))]
+        raise ShaderError(
+            f"{name}:{where[first][1]}: #version {m.group(1)} is older than "
+            f"{MIN_VERSION} (compute shaders and SSBOs need 4.3)"
+        )
+    injected = [
+        f"#define {k} {'' if v is True else v}".rstrip()
+        for k, v in sorted((defines or {}).items())
+        if v is not False and v is not None
+    ]
+    out[first + 1 : first + 1] = injected
+    where[first + 1 : first + 1] = [("<defines>", i + 1) for i in range(len(injected))]
     return Source("\n".join(out) + "\n", tuple(where))
 
 
@@ -95,7 +100,7 @@ def explain(log: str, sources: dict[str, Source]) -> str:
         m = _LOG_LINE.match(raw)
         if m and src is not None:
             col = f" (column {m.group(2)})" if m.group(2) else ""
-            lines.append(f"{src.where(int(m.group(1)))}{col}: {raw[m.end():].strip()}")
+            lines.append(f"{src.where(int(m.group(1)))}{col}: {raw[m.end() :].strip()}")
         else:
             lines.append(raw)
     return "\n".join(lines)
@@ -108,8 +113,9 @@ class ShaderLibrary:
         self.ctx = ctx
         self._cache: dict[tuple, moderngl.Program | moderngl.ComputeShader] = {}
 
-    def program(self, vertex: str, fragment: str,
-                defines: dict[str, object] | None = None) -> moderngl.Program:
+    def program(
+        self, vertex: str, fragment: str, defines: dict[str, object] | None = None
+    ) -> moderngl.Program:
         key = ("program", vertex, fragment, tuple(sorted((defines or {}).items())))
         if key not in self._cache:
             vs = assemble(vertex, defines)
@@ -119,25 +125,30 @@ class ShaderLibrary:
             except moderngl.Error as exc:
                 text = str(exc)
                 # moderngl heads each stage's log with its name; map lines through that stage.
-                for stage, name, src in (("fragment_shader", fragment, fs),
-                                         ("vertex_shader", vertex, vs)):
+                for stage, name, src in (
+                    ("fragment_shader", fragment, fs),
+                    ("vertex_shader", vertex, vs),
+                ):
                     if f"{stage}\n===" in text:
                         log = text.split("=\n", 1)[-1]
-                        raise ShaderError(f"{name} failed to compile:\n"
-                                          f"{explain(log, {name: src})}") from exc
+                        raise ShaderError(
+                            f"{name} failed to compile:\n{explain(log, {name: src})}"
+                        ) from exc
                 raise ShaderError(f"linking {vertex} + {fragment} failed:\n{text}") from exc
         return self._cache[key]  # type: ignore[return-value]
 
-    def compute(self, name: str, defines: dict[str, object] | None = None
-                ) -> moderngl.ComputeShader:
+    def compute(
+        self, name: str, defines: dict[str, object] | None = None
+    ) -> moderngl.ComputeShader:
         key = ("compute", name, tuple(sorted((defines or {}).items())))
         if key not in self._cache:
             src = assemble(name, defines)
             try:
                 self._cache[key] = self.ctx.compute_shader(src.text)
             except moderngl.Error as exc:
-                raise ShaderError(f"{name} failed to compile:\n{explain(str(exc), {name: src})}"
-                                  ) from exc
+                raise ShaderError(
+                    f"{name} failed to compile:\n{explain(str(exc), {name: src})}"
+                ) from exc
         return self._cache[key]  # type: ignore[return-value]
 
     def release(self) -> None:

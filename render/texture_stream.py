@@ -32,16 +32,23 @@ class Resident:
 
 
 class TextureStreamer:
-    def __init__(self, ctx: moderngl.Context, textures: list[Texture],
-                 budget_bytes: int = 8 << 20, keep_frames: int = 30,
-                 anisotropy: float = 1.0) -> None:
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        textures: list[Texture],
+        budget_bytes: int = 8 << 20,
+        keep_frames: int = 30,
+        anisotropy: float = 1.0,
+    ) -> None:
         self.ctx = ctx
         self.budget_bytes = budget_bytes
         self.keep_frames = keep_frames
         self.anisotropy = anisotropy
         self.sources = textures
-        self.pyramids = [[np.ascontiguousarray(np.flipud(level)) for level in
-                          build_pyramid(t.rgba)] for t in textures]  # GL rows: bottom first
+        self.pyramids = [
+            [np.ascontiguousarray(np.flipud(level)) for level in build_pyramid(t.rgba)]
+            for t in textures
+        ]  # GL rows: bottom first
         self.level_sizes = [[(p.shape[1], p.shape[0]) for p in pyr] for pyr in self.pyramids]
         self.level_bytes = [level_bytes(*t.size) for t in textures]
         self.resident: list[Resident] = [self._make(i, 0) for i in range(len(textures))]
@@ -54,8 +61,9 @@ class TextureStreamer:
     def _make(self, index: int, base: int) -> Resident:
         pyr = self.pyramids[index]
         src = self.sources[index]
-        tex = self.ctx.texture(self.level_sizes[index][base], 4, pyr[base].tobytes(),
-                               internal_format=GL_SRGB8_ALPHA8)
+        tex = self.ctx.texture(
+            self.level_sizes[index][base], 4, pyr[base].tobytes(), internal_format=GL_SRGB8_ALPHA8
+        )
         if base < len(pyr) - 1:
             tex.build_mipmaps(0, len(pyr) - 1 - base)  # allocates the chain ...
             for k in range(base + 1, len(pyr)):  # ... which we fill with our linear-light levels
@@ -76,8 +84,10 @@ class TextureStreamer:
         budget = self.budget_bytes
         self.uploaded_bytes = 0
         # Finest first: the most visible improvement gets the budget.
-        order = sorted(range(len(self.resident)),
-                       key=lambda i: finest_needed[i] if finest_needed[i] >= 0 else 99)
+        order = sorted(
+            range(len(self.resident)),
+            key=lambda i: finest_needed[i] if finest_needed[i] >= 0 else 99,
+        )
         for i in order:
             res = self.resident[i]
             need = finest_needed[i]

@@ -12,8 +12,9 @@ from PIL import Image
 
 REFERENCES = Path(__file__).parent / "references"
 FAILURES = Path(__file__).parent / "_failures"
-SCENES = Path(os.environ.get("VRPREVIEW_SCENES",
-                             Path(__file__).resolve().parents[2] / "shared" / "scenes"))
+SCENES = Path(
+    os.environ.get("VRPREVIEW_SCENES", Path(__file__).resolve().parents[2] / "shared" / "scenes")
+)
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -26,8 +27,11 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    parser.addoption("--regen-references", action="store_true",
-                     help="rewrite tests/references/*.png from the current renderer")
+    parser.addoption(
+        "--regen-references",
+        action="store_true",
+        help="rewrite tests/references/*.png from the current renderer",
+    )
 
 
 @pytest.fixture(autouse=True)
@@ -41,8 +45,11 @@ def _no_logged_errors(caplog: pytest.LogCaptureFixture):
     """A test fails if anything logged an error (a render pass failing, say)."""
     caplog.set_level(logging.WARNING)
     yield
-    errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR
-              and not getattr(r, "expected", False)]
+    errors = [
+        r
+        for r in caplog.get_records("call")
+        if r.levelno >= logging.ERROR and not getattr(r, "expected", False)
+    ]
     assert not errors, "errors were logged: " + "; ".join(r.getMessage() for r in errors)
 
 
@@ -56,8 +63,9 @@ def compare_reference(request: pytest.FixtureRequest):
     """
     regen = request.config.getoption("--regen-references")
 
-    def compare(name: str, image: np.ndarray, max_mean: float = 1.0,
-                max_frac: float = 0.002) -> None:
+    def compare(
+        name: str, image: np.ndarray, max_mean: float = 1.0, max_frac: float = 0.002
+    ) -> None:
         ref_path = REFERENCES / f"{name}.png"
         if regen or not ref_path.exists():
             if not regen:
@@ -74,9 +82,12 @@ def compare_reference(request: pytest.FixtureRequest):
             FAILURES.mkdir(exist_ok=True)
             Image.fromarray(image).save(FAILURES / f"{name}.actual.png")
             Image.fromarray(np.clip(diff * 4, 0, 255).astype(np.uint8)).save(
-                FAILURES / f"{name}.diff.png")
-            pytest.fail(f"{name}: mean diff {mean:.2f} (max {max_mean}), {frac:.4f} of pixels "
-                        f"off by >16 (max {max_frac}); see {FAILURES}")
+                FAILURES / f"{name}.diff.png"
+            )
+            pytest.fail(
+                f"{name}: mean diff {mean:.2f} (max {max_mean}), {frac:.4f} of pixels "
+                f"off by >16 (max {max_frac}); see {FAILURES}"
+            )
 
     return compare
 
@@ -84,6 +95,8 @@ def compare_reference(request: pytest.FixtureRequest):
 @pytest.fixture(scope="session")
 def scenes_dir() -> Path:
     if not SCENES.is_dir():
-        pytest.fail(f"third-party test scenes not found at {SCENES} (expected ../shared/scenes "
-                    "beside the checkout, or set VRPREVIEW_SCENES)")
+        pytest.fail(
+            f"third-party test scenes not found at {SCENES} (expected ../shared/scenes "
+            "beside the checkout, or set VRPREVIEW_SCENES)"
+        )
     return SCENES

@@ -15,21 +15,64 @@ from app.cli import main
 def test_render_writes_a_stereo_png_and_frame_n_is_deterministic(tmp_path):
     a, b = tmp_path / "a.png", tmp_path / "b.png"
     for out in (a, b):
-        assert main(["render", "--scene", "texture-test", "--out", str(out), "--size", "320x180",
-                     "--frame", "90"]) == 0
+        assert (
+            main(
+                [
+                    "render",
+                    "--scene",
+                    "texture-test",
+                    "--out",
+                    str(out),
+                    "--size",
+                    "320x180",
+                    "--frame",
+                    "90",
+                ]
+            )
+            == 0
+        )
     img = np.asarray(Image.open(a))
     assert img.shape == (180, 320, 3) and img.std() > 10
     assert np.array_equal(img, np.asarray(Image.open(b)))
     c = tmp_path / "c.png"
-    main(["render", "--scene", "texture-test", "--out", str(c), "--size", "320x180",
-          "--frame", "150"])
+    main(
+        [
+            "render",
+            "--scene",
+            "texture-test",
+            "--out",
+            str(c),
+            "--size",
+            "320x180",
+            "--frame",
+            "150",
+        ]
+    )
     assert not np.array_equal(img, np.asarray(Image.open(c)))  # the path moves the camera
 
 
 def test_bench_writes_the_documented_fields(tmp_path):
     out = tmp_path / "bench.json"
-    assert main(["bench", "--scene", "texture-test", "--frames", "6", "--warmup", "1",
-                 "--size", "320x180", "--set", "render.path=forward", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--scene",
+                "texture-test",
+                "--frames",
+                "6",
+                "--warmup",
+                "1",
+                "--size",
+                "320x180",
+                "--set",
+                "render.path=forward",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     r = json.loads(out.read_text())
     assert r["frames"] == 6 and r["fps_median"] > 0
     assert r["frame_ms"]["p95"] >= r["frame_ms"]["median"] > 0
@@ -39,16 +82,22 @@ def test_bench_writes_the_documented_fields(tmp_path):
     assert r["settings"]["render"]["path"] == "forward" and r["errors"] == []
 
 
-@pytest.mark.parametrize("args, message", [
-    (["render", "--scene", "/nope/missing.glb", "--out", "x.png"], "missing.glb"),
-    (["render", "--scene", "texture-test", "--out", "x.png", "--set", "stereo.ipd=1"],
-     "unknown setting"),
-    (["render", "--scene", "texture-test", "--out", "x.png", "--size", "big"], "size must"),
-    (["bench", "--scene", "texture-test", "--out", "x.json", "--path", "nothere.json"],
-     "cannot read path"),
-])
-def test_bad_input_is_a_clear_error_not_a_traceback(args, message, capsys, tmp_path,
-                                                    monkeypatch):
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["render", "--scene", "/nope/missing.glb", "--out", "x.png"], "missing.glb"),
+        (
+            ["render", "--scene", "texture-test", "--out", "x.png", "--set", "stereo.ipd=1"],
+            "unknown setting",
+        ),
+        (["render", "--scene", "texture-test", "--out", "x.png", "--size", "big"], "size must"),
+        (
+            ["bench", "--scene", "texture-test", "--out", "x.json", "--path", "nothere.json"],
+            "cannot read path",
+        ),
+    ],
+)
+def test_bad_input_is_a_clear_error_not_a_traceback(args, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(args) == 2
     err = capsys.readouterr().err

@@ -66,11 +66,27 @@ def test_scene_is_clean_named_and_furnished(corridor: Scene) -> None:
     assert corridor.warnings == [], corridor.warnings
     names = _names(corridor)
     assert len(names) == len(set(names)), "mesh names must be unique"
-    required = {"floor", "ceiling", "wall_left", "wall_right", "wall_far", "wall_near",
-                "carpet_runner", "pilasters", "ceiling_beams", "window", "exit_sign"}
+    required = {
+        "floor",
+        "ceiling",
+        "wall_left",
+        "wall_right",
+        "wall_far",
+        "wall_near",
+        "carpet_runner",
+        "pilasters",
+        "ceiling_beams",
+        "window",
+        "exit_sign",
+    }
     assert required <= set(names), required - set(names)
-    for kind, least in (("door_", 10), ("bench_", 5), ("cabinet_", 5), ("planter_", 6),
-                        ("painting_", 10)):
+    for kind, least in (
+        ("door_", 10),
+        ("bench_", 5),
+        ("cabinet_", 5),
+        ("planter_", 6),
+        ("painting_", 10),
+    ):
         count = sum(1 for n in names if n.startswith(kind) and n.count("_") == 1)
         assert count >= least, (kind, count)
     lo, hi = corridor.bounds()
@@ -91,8 +107,7 @@ def test_normals_are_unit_and_match_the_winding(corridor: Scene) -> None:
 
 
 def test_shell_is_textured_with_repeating_textures(corridor: Scene) -> None:
-    for name in ("floor", "ceiling", "wall_left", "wall_right", "wall_left_lower",
-                 "carpet_runner"):
+    for name in ("floor", "ceiling", "wall_left", "wall_right", "wall_left_lower", "carpet_runner"):
         m = next(m for m in corridor.meshes if m.name == name)
         tex_index = corridor.materials[m.material].texture
         assert tex_index is not None, name
@@ -100,10 +115,13 @@ def test_shell_is_textured_with_repeating_textures(corridor: Scene) -> None:
         assert np.ptp(m.uvs, axis=0).max() > 5.0, (name, "the texture must repeat")
 
 
-@pytest.mark.parametrize("name,axes", [("plaster", (0, 1)), ("terrazzo", (0, 1)),
-                                       ("ceiling_tiles", (0, 1)), ("carpet_runner", (0,))])
-def test_corridor_textures_tile_seamlessly(corridor: Scene, name: str, axes: tuple[int, ...]
-                                           ) -> None:
+@pytest.mark.parametrize(
+    "name,axes",
+    [("plaster", (0, 1)), ("terrazzo", (0, 1)), ("ceiling_tiles", (0, 1)), ("carpet_runner", (0,))],
+)
+def test_corridor_textures_tile_seamlessly(
+    corridor: Scene, name: str, axes: tuple[int, ...]
+) -> None:
     img = next(t for t in corridor.textures if t.name == name).rgba[..., :3].astype(np.float64)
     assert img.std(axis=(0, 1)).max() > 3.0, "a texture, not a flat fill"
     for axis in axes:  # the runner repeats only along its length (image rows)
@@ -152,8 +170,9 @@ def test_light_count_is_honoured(count: int) -> None:
     assert np.all(pos[under_beam, 1] < HEIGHT - BEAM_H), "no light inside a ceiling beam"
     assert len({tuple(p) for p in pos.round(3)}) == count
     assert all(light.intensity > 0 and light.range_m >= 2.9 for light in lights)
-    assert corridor_irradiance(lights) == pytest.approx(corridor_irradiance(
-        make_corridor_lights(4)), rel=0.01), "the same overall brightness at every count"
+    assert corridor_irradiance(lights) == pytest.approx(
+        corridor_irradiance(make_corridor_lights(4)), rel=0.01
+    ), "the same overall brightness at every count"
     assert make_corridor_lights(count) == lights, "seeded: the same lights every time"
 
 
@@ -165,8 +184,9 @@ def test_lights_light_the_whole_corridor_evenly() -> None:
     lights = make_corridor_lights(4)
     four = irradiance_profile(lights)
     assert four.min() > 0.2 * many.mean()
-    ends = np.array([[0.0, 0.0, -0.5], [HW, 0.0, -0.5], [0.0, 0.0, 0.5 - LENGTH],
-                     [-HW, 2.5, 0.5 - LENGTH]])
+    ends = np.array(
+        [[0.0, 0.0, -0.5], [HW, 0.0, -0.5], [0.0, 0.0, 0.5 - LENGTH], [-HW, 2.5, 0.5 - LENGTH]]
+    )
     pos = np.array([light.position for light in lights])
     for point in ends:
         reach = np.linalg.norm(pos - point, axis=1) < [light.range_m for light in lights]
@@ -220,8 +240,9 @@ def test_walk_weaves_gently(walk: CameraPath) -> None:
     assert steps.max() < 15.0, "turns in degrees per second, never a jerk"
 
 
-def test_walk_stays_clear_of_walls_and_furniture(corridor: Scene, caster: RayCaster,
-                                                 walk: CameraPath) -> None:
+def test_walk_stays_clear_of_walls_and_furniture(
+    corridor: Scene, caster: RayCaster, walk: CameraPath
+) -> None:
     pos = _positions(walk, 0.02)  # 5 cm apart at 2.5 m/s
     assert np.all(np.abs(pos[:, 0]) < HW - CLEARANCE_M)
     assert clear_around(caster, pos[:, [0, 2]], BODY_HEIGHTS, CLEARANCE_M, 32)
@@ -239,16 +260,16 @@ def test_clearance_check_would_catch_a_collision(corridor: Scene, caster: RayCas
     cabinet = next(m for m in corridor.meshes if m.name == "cabinet_L1")
     lo, hi = cabinet.bounds()
     front_x = float(hi[0]) + 0.3  # 30 cm in front of a cabinet on the left wall
-    assert not clear_around(caster, np.array([[front_x, float(lo[2] + hi[2]) / 2]]), (0.45,),
-                            CLEARANCE_M, 32)
+    assert not clear_around(
+        caster, np.array([[front_x, float(lo[2] + hi[2]) / 2]]), (0.45,), CLEARANCE_M, 32
+    )
     assert not clear_around(caster, np.array([[HW - 0.3, -20.0]]), (1.6,), CLEARANCE_M, 32)
 
 
 # -- a frame ------------------------------------------------------------------------------------
 
 
-def test_walk_frame_120_renders_a_lit_corridor_in_stereo(corridor: Scene, walk: CameraPath
-                                                          ) -> None:
+def test_walk_frame_120_renders_a_lit_corridor_in_stereo(corridor: Scene, walk: CameraPath) -> None:
     from app.session import Session
     from app.settings import Settings
     from render.offscreen import OffscreenHost

@@ -51,8 +51,16 @@ def _cps(**changes) -> CpsSettings:
 
 def test_view_rays_match_eye_ray() -> None:
     eye = _eye(123, 77, index=1)
-    points = [(0.0, 0.0), (1.0, 1.0), (0.3, 0.8), (0.5, 0.5), (-2.0, 0.4), (0.2, 7.0),
-              (math.nan, 0.1), (0.9, math.inf)]
+    points = [
+        (0.0, 0.0),
+        (1.0, 1.0),
+        (0.3, 0.8),
+        (0.5, 0.5),
+        (-2.0, 0.4),
+        (0.2, 7.0),
+        (math.nan, 0.1),
+        (0.9, math.inf),
+    ]
     u = np.array([p[0] for p in points])
     v = np.array([p[1] for p in points])
     got = view_rays(eye, u, v)
@@ -101,26 +109,50 @@ def test_edge_rays_take_at_least_one_per_side() -> None:
 # -- side caps --------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("distance", "expected"), [
-    (-1.0, 4), (0.0, 4), (0.5, 4), (1.0, 4),  # at or nearer than near_m: max_level
-    (2.25, 3),  # 4 * 3.75 / 5 = 3.0
-    (2.875, 3),  # 4 * 0.625 = 2.5: half rounds up
-    (2.876, 2),
-    (3.5, 2), (5.0, 1), (5.37, 1), (5.38, 0), (6.0, 0), (100.0, 0),
-    (math.inf, 0), (math.nan, 0), (-math.inf, 0),
-])
+@pytest.mark.parametrize(
+    ("distance", "expected"),
+    [
+        (-1.0, 4),
+        (0.0, 4),
+        (0.5, 4),
+        (1.0, 4),  # at or nearer than near_m: max_level
+        (2.25, 3),  # 4 * 3.75 / 5 = 3.0
+        (2.875, 3),  # 4 * 0.625 = 2.5: half rounds up
+        (2.876, 2),
+        (3.5, 2),
+        (5.0, 1),
+        (5.37, 1),
+        (5.38, 0),
+        (6.0, 0),
+        (100.0, 0),
+        (math.inf, 0),
+        (math.nan, 0),
+        (-math.inf, 0),
+    ],
+)
 def test_cap_from_distance(distance: float, expected: int) -> None:
     assert cap_from_distance(distance, _cps(max_level=4, near_m=1.0, far_m=6.0)) == expected
 
 
-@pytest.mark.parametrize(("near", "far", "distance", "expected"), [
-    (2.0, 2.0, 2.0, 5), (2.0, 2.0, 2.0001, 0), (2.0, 2.0, 0.1, 5),
-    (3.0, 1.0, 2.0, 5), (3.0, 1.0, 3.5, 0), (0.0, 0.0, 0.0, 5), (0.0, 0.0, 1e-9, 0),
-    (3.0, 1.0, math.nan, 0), (2.0, 2.0, math.inf, 0),
-    (math.nan, 6.0, 0.5, 0), (1.0, math.inf, 0.5, 0),
-])
-def test_cap_when_far_is_not_beyond_near(near: float, far: float, distance: float,
-                                         expected: int) -> None:
+@pytest.mark.parametrize(
+    ("near", "far", "distance", "expected"),
+    [
+        (2.0, 2.0, 2.0, 5),
+        (2.0, 2.0, 2.0001, 0),
+        (2.0, 2.0, 0.1, 5),
+        (3.0, 1.0, 2.0, 5),
+        (3.0, 1.0, 3.5, 0),
+        (0.0, 0.0, 0.0, 5),
+        (0.0, 0.0, 1e-9, 0),
+        (3.0, 1.0, math.nan, 0),
+        (2.0, 2.0, math.inf, 0),
+        (math.nan, 6.0, 0.5, 0),
+        (1.0, math.inf, 0.5, 0),
+    ],
+)
+def test_cap_when_far_is_not_beyond_near(
+    near: float, far: float, distance: float, expected: int
+) -> None:
     assert cap_from_distance(distance, _cps(max_level=5, near_m=near, far_m=far)) == expected
 
 
@@ -152,8 +184,7 @@ def test_side_caps_without_a_scene() -> None:
 def test_wall_on_the_left_caps_only_the_left() -> None:
     # A wall 0.5 m left of the head (x = -0.5), from eye height (1.6 m) up: the upper left edge
     # rays hit it, the right and bottom rays (all going down) see nothing.
-    wall = _quad([(-0.5, 1.6, 10.0), (-0.5, 1.6, -10.0), (-0.5, 10.0, -10.0),
-                  (-0.5, 10.0, 10.0)])
+    wall = _quad([(-0.5, 1.6, 10.0), (-0.5, 1.6, -10.0), (-0.5, 10.0, -10.0), (-0.5, 10.0, 10.0)])
     caster = _CountingCaster(wall)
     eye = _eye(160, 90)
     settings = _cps(max_level=4, near_m=1.0, far_m=6.0, rays_per_side=6)
@@ -168,10 +199,10 @@ def test_wall_on_the_left_caps_only_the_left() -> None:
 
 
 def test_side_caps_follow_the_nearest_hit_per_side() -> None:
-    floor = _quad([(-50.0, 0.0, 50.0), (50.0, 0.0, 50.0), (50.0, 0.0, -50.0),
-                   (-50.0, 0.0, -50.0)])
-    right_wall = _quad([(3.0, -5.0, 20.0), (3.0, -5.0, -20.0), (3.0, 20.0, -20.0),
-                        (3.0, 20.0, 20.0)])
+    floor = _quad([(-50.0, 0.0, 50.0), (50.0, 0.0, 50.0), (50.0, 0.0, -50.0), (-50.0, 0.0, -50.0)])
+    right_wall = _quad(
+        [(3.0, -5.0, 20.0), (3.0, -5.0, -20.0), (3.0, 20.0, -20.0), (3.0, 20.0, 20.0)]
+    )
     caster = RayCaster(np.concatenate([floor, right_wall]))
     eye = _eye(160, 90, index=1)
     n = 5
@@ -183,8 +214,9 @@ def test_side_caps_follow_the_nearest_hit_per_side() -> None:
     expected_bottom = float(np.min(-eye.position[1] / bottom[:, 1]))
     _o, right = rays["right"]
     to_wall = (3.0 - eye.position[0]) / right[:, 0]
-    to_floor = np.where(right[:, 1] < 0, -eye.position[1] / np.minimum(right[:, 1], -1e-300),
-                        np.inf)
+    to_floor = np.where(
+        right[:, 1] < 0, -eye.position[1] / np.minimum(right[:, 1], -1e-300), np.inf
+    )
     expected_right = float(np.min(np.minimum(to_wall, to_floor)))
     assert caps.distances["bottom"] == pytest.approx(expected_bottom, rel=1e-6)
     assert caps.distances["right"] == pytest.approx(expected_right, rel=1e-6)
@@ -198,8 +230,7 @@ def test_side_caps_follow_the_nearest_hit_per_side() -> None:
 def test_side_caps_of_a_broken_eye_reduce_nothing() -> None:
     eye = _eye()
     eye.position = np.array([math.nan, 0.0, 0.0])
-    floor = _quad([(-50.0, 0.0, 50.0), (50.0, 0.0, 50.0), (50.0, 0.0, -50.0),
-                   (-50.0, 0.0, -50.0)])
+    floor = _quad([(-50.0, 0.0, 50.0), (50.0, 0.0, 50.0), (50.0, 0.0, -50.0), (-50.0, 0.0, -50.0)])
     caps = side_caps(RayCaster(floor), eye, _cps(near_m=100.0, far_m=200.0))
     assert caps.caps == dict.fromkeys(SIDES, 0)
     assert caps.hits.shape == (0, 3)
@@ -208,12 +239,30 @@ def test_side_caps_of_a_broken_eye_reduce_nothing() -> None:
 # -- desired level and cap field ----------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("theta", "cap", "expected"), [
-    (0.0, 5, 0), (10.0, 5, 0), (10.0001, 5, 1), (15.99, 5, 1), (16.0, 5, 2), (21.9, 5, 2),
-    (22.0, 5, 3), (28.0, 5, 4), (100.0, 5, 4), (179.9, 5, 4), (math.inf, 5, 4),
-    (100.0, 2, 2), (100.0, 0, 0), (100.0, -3, 0), (100.0, 2.7, 2), (100.0, math.nan, 0),
-    (math.nan, 5, 0), (-5.0, 5, 0), (-math.inf, 5, 0),
-])
+@pytest.mark.parametrize(
+    ("theta", "cap", "expected"),
+    [
+        (0.0, 5, 0),
+        (10.0, 5, 0),
+        (10.0001, 5, 1),
+        (15.99, 5, 1),
+        (16.0, 5, 2),
+        (21.9, 5, 2),
+        (22.0, 5, 3),
+        (28.0, 5, 4),
+        (100.0, 5, 4),
+        (179.9, 5, 4),
+        (math.inf, 5, 4),
+        (100.0, 2, 2),
+        (100.0, 0, 0),
+        (100.0, -3, 0),
+        (100.0, 2.7, 2),
+        (100.0, math.nan, 0),
+        (math.nan, 5, 0),
+        (-5.0, 5, 0),
+        (-math.inf, 5, 0),
+    ],
+)
 def test_desired_level(theta: float, cap: float, expected: int) -> None:
     settings = _cps(max_level=4, fovea_deg=10.0, deg_per_level=6.0)
     assert int(desired_level(theta, cap, settings)) == expected
@@ -230,11 +279,17 @@ def test_desired_level_fallbacks() -> None:
 
 
 @SWEEP
-@given(a=st.floats(0, 180), b=st.floats(0, 180), cap=st.integers(-2, 8),
-       fovea=st.floats(0, 180), step=st.floats(0.1, 180), max_level=st.integers(0, 5))
-def test_desired_level_grows_with_angle_and_respects_limits(a: float, b: float, cap: int,
-                                                           fovea: float, step: float,
-                                                           max_level: int) -> None:
+@given(
+    a=st.floats(0, 180),
+    b=st.floats(0, 180),
+    cap=st.integers(-2, 8),
+    fovea=st.floats(0, 180),
+    step=st.floats(0.1, 180),
+    max_level=st.integers(0, 5),
+)
+def test_desired_level_grows_with_angle_and_respects_limits(
+    a: float, b: float, cap: int, fovea: float, step: float, max_level: int
+) -> None:
     settings = _cps(fovea_deg=fovea, deg_per_level=step, max_level=max_level)
     lo, hi = sorted((a, b))
     la, lb = int(desired_level(lo, cap, settings)), int(desired_level(hi, cap, settings))
@@ -261,8 +316,14 @@ def test_block_centres() -> None:
 # -- detail map -------------------------------------------------------------------------------
 
 
-def _reference_map(eye: EyeView, w: int, h: int, gaze: tuple[float, float],
-                   caps: dict[str, int], settings: CpsSettings) -> np.ndarray:
+def _reference_map(
+    eye: EyeView,
+    w: int,
+    h: int,
+    gaze: tuple[float, float],
+    caps: dict[str, int],
+    settings: CpsSettings,
+) -> np.ndarray:
     """The detail map by the letter of its definition, one pixel and one level at a time."""
     g = eye.ray(*gaze)
     max_level = min(MAX_LEVEL, settings.max_level)
@@ -276,14 +337,17 @@ def _reference_map(eye: EyeView, w: int, h: int, gaze: tuple[float, float],
         wb = min(1.0, max(0.0, (v - 0.5) / 0.25))
         left, right = caps.get("left", 0), caps.get("right", 0)
         cap = math.floor(max(left + (right - left) * t, caps.get("bottom", 0) * wb))
-        e = 0 if theta <= settings.fovea_deg else math.floor(
-            (theta - settings.fovea_deg) / settings.deg_per_level) + 1
+        e = (
+            0
+            if theta <= settings.fovea_deg
+            else math.floor((theta - settings.fovea_deg) / settings.deg_per_level) + 1
+        )
         return max(0, min(e, cap, max_level))
 
     for y in range(h):
         for x in range(w):
             for s in range(max_level, 0, -1):
-                b = 2 ** s
+                b = 2**s
                 ox, oy = x & ~(b - 1), y & ~(b - 1)
                 cx = min(max(ox + b / 2, 0.5), w - 0.5)
                 cy = min(max(oy + b / 2, 0.5), h - 0.5)
@@ -297,21 +361,25 @@ def _assert_blocks_uniform(level_map: np.ndarray) -> None:
     """Every aligned 2^s block that holds a pixel of level s holds only level s."""
     h, w = level_map.shape
     for s in range(1, MAX_LEVEL + 1):
-        b = 2 ** s
+        b = 2**s
         ys, xs = np.nonzero(level_map == s)
         for oy, ox in {(y & ~(b - 1), x & ~(b - 1)) for y, x in zip(ys, xs)}:
-            block = level_map[oy:min(oy + b, h), ox:min(ox + b, w)]
+            block = level_map[oy : min(oy + b, h), ox : min(ox + b, w)]
             assert (block == s).all(), f"level {s} block at ({ox}, {oy}) is not uniform"
 
 
-@pytest.mark.parametrize(("gaze", "caps", "max_level"), [
-    ((0.5, 0.5), ALL_MAX, 5),
-    ((0.8, 0.2), {"left": 5, "right": 2, "bottom": 3}, 5),
-    ((0.1, 0.9), {"left": 1, "right": 4, "bottom": 0}, 3),
-    ((-0.3, 1.7), ALL_MAX, 4),
-])
-def test_detail_map_matches_its_definition(gaze: tuple[float, float], caps: dict[str, int],
-                                           max_level: int) -> None:
+@pytest.mark.parametrize(
+    ("gaze", "caps", "max_level"),
+    [
+        ((0.5, 0.5), ALL_MAX, 5),
+        ((0.8, 0.2), {"left": 5, "right": 2, "bottom": 3}, 5),
+        ((0.1, 0.9), {"left": 1, "right": 4, "bottom": 0}, 3),
+        ((-0.3, 1.7), ALL_MAX, 4),
+    ],
+)
+def test_detail_map_matches_its_definition(
+    gaze: tuple[float, float], caps: dict[str, int], max_level: int
+) -> None:
     w, h = 45, 27  # not multiples of any block: clipped blocks at the right and top
     eye = _eye(w, h, fov_deg=110.0)
     settings = _cps(max_level=max_level, fovea_deg=8.0, deg_per_level=5.0)
@@ -342,7 +410,7 @@ def _margin_deg(h: int, fov_deg: float, max_level: int) -> float:
     2 tan(fov / 2) / H each.
     """
     px = 2 * math.tan(math.radians(fov_deg) / 2) / h
-    return math.degrees(2 ** max_level * math.sqrt(2) / 2 * px)
+    return math.degrees(2**max_level * math.sqrt(2) / 2 * px)
 
 
 def test_fovea_keeps_full_detail() -> None:
@@ -388,7 +456,7 @@ def test_never_above_max_level_or_the_side_cap() -> None:
         assert got.max() == min(max_level, 3)
         for s in range(1, max_level + 1):
             ys, xs = np.nonzero(got == s)
-            b = 2 ** s
+            b = 2**s
             cx = np.minimum((xs & ~(b - 1)) + b / 2, w - 0.5)
             cy = np.minimum((ys & ~(b - 1)) + b / 2, h - 0.5)
             assert (cap_at(cx / w, 1 - cy / h, caps) >= s).all()
@@ -398,17 +466,35 @@ def test_left_cap_fades_out_towards_the_right() -> None:
     w, h = 128, 64
     eye = _eye(w, h)
     got = detail_map(eye, w, h, (0.5, 0.5), {"left": 4}, _cps(fovea_deg=0.0, max_level=5))
-    assert not got[:, 3 * w // 4:].any()  # the right quarter keeps the right cap, 0
+    assert not got[:, 3 * w // 4 :].any()  # the right quarter keeps the right cap, 0
     assert got[:, : w // 4].min() > 0 and got.max() == 4
 
 
 @SWEEP
-@given(w=st.integers(1, 80), h=st.integers(1, 80), gu=st.floats(-0.5, 1.5),
-       gv=st.floats(-0.5, 1.5), cl=st.integers(0, 5), cr=st.integers(0, 5),
-       cb=st.integers(0, 5), fovea=st.floats(0, 60), step=st.floats(0.1, 30),
-       max_level=st.integers(0, 5))
-def test_level_blocks_are_uniform(w: int, h: int, gu: float, gv: float, cl: int, cr: int,
-                                  cb: int, fovea: float, step: float, max_level: int) -> None:
+@given(
+    w=st.integers(1, 80),
+    h=st.integers(1, 80),
+    gu=st.floats(-0.5, 1.5),
+    gv=st.floats(-0.5, 1.5),
+    cl=st.integers(0, 5),
+    cr=st.integers(0, 5),
+    cb=st.integers(0, 5),
+    fovea=st.floats(0, 60),
+    step=st.floats(0.1, 30),
+    max_level=st.integers(0, 5),
+)
+def test_level_blocks_are_uniform(
+    w: int,
+    h: int,
+    gu: float,
+    gv: float,
+    cl: int,
+    cr: int,
+    cb: int,
+    fovea: float,
+    step: float,
+    max_level: int,
+) -> None:
     eye = _eye(w, h, fov_deg=120.0)
     settings = _cps(fovea_deg=fovea, deg_per_level=step, max_level=max_level)
     got = detail_map(eye, w, h, (gu, gv), {"left": cl, "right": cr, "bottom": cb}, settings)
@@ -421,8 +507,9 @@ def test_detail_map_of_tiny_viewports(w: int, h: int) -> None:
     eye = _eye(w, h)
     got = detail_map(eye, w, h, (0.0, 1.0), ALL_MAX, _cps(fovea_deg=0.0, deg_per_level=0.1))
     assert got.shape == (h, w)
-    np.testing.assert_array_equal(got, _reference_map(eye, w, h, (0.0, 1.0), ALL_MAX,
-                                                      _cps(fovea_deg=0.0, deg_per_level=0.1)))
+    np.testing.assert_array_equal(
+        got, _reference_map(eye, w, h, (0.0, 1.0), ALL_MAX, _cps(fovea_deg=0.0, deg_per_level=0.1))
+    )
     _assert_blocks_uniform(got)
     assert detail_map(eye, 0, -3, (0.5, 0.5), ALL_MAX, _cps()).shape == (1, 1)
 
@@ -433,10 +520,15 @@ def test_detail_map_extremes() -> None:
     assert not detail_map(eye, w, h, (0.5, 0.5), ALL_MAX, _cps(max_level=0)).any()
     assert not detail_map(eye, w, h, (0.5, 0.5), ALL_MAX, _cps(fovea_deg=180.0)).any()
     settings = _cps(fovea_deg=2.0, deg_per_level=3.0)
-    for outside, clamped in [((-1.0, 2.0), (0.0, 1.0)), ((7.0, -0.5), (1.0, 0.0)),
-                             ((math.nan, math.inf), (0.5, 0.5))]:
-        np.testing.assert_array_equal(detail_map(eye, w, h, outside, ALL_MAX, settings),
-                                      detail_map(eye, w, h, clamped, ALL_MAX, settings))
+    for outside, clamped in [
+        ((-1.0, 2.0), (0.0, 1.0)),
+        ((7.0, -0.5), (1.0, 0.0)),
+        ((math.nan, math.inf), (0.5, 0.5)),
+    ]:
+        np.testing.assert_array_equal(
+            detail_map(eye, w, h, outside, ALL_MAX, settings),
+            detail_map(eye, w, h, clamped, ALL_MAX, settings),
+        )
 
 
 # -- shares and samples -----------------------------------------------------------------------
@@ -452,8 +544,8 @@ def test_level_shares() -> None:
 @pytest.mark.parametrize("s", range(6))
 def test_shaded_samples_of_a_uniform_map(s: int) -> None:
     level_map = np.full((64, 128), s, np.uint8)
-    assert shaded_samples(level_map) == 64 * 128 // 4 ** s
-    assert shaded_samples(level_map) == pytest.approx((1.0 / 4.0 ** level_map).sum())
+    assert shaded_samples(level_map) == 64 * 128 // 4**s
+    assert shaded_samples(level_map) == pytest.approx((1.0 / 4.0**level_map).sum())
 
 
 def test_shaded_samples_count_clipped_blocks_once() -> None:
@@ -466,7 +558,7 @@ def test_shaded_samples_of_a_detail_map() -> None:
     w, h = 256, 128  # multiples of 32: no clipped block, so samples = sum of 1 / 4^s
     got = detail_map(_eye(w, h), w, h, (0.3, 0.6), ALL_MAX, _cps(max_level=5, fovea_deg=3.0))
     samples = shaded_samples(got)
-    assert samples == pytest.approx((1.0 / 4.0 ** got).sum())
+    assert samples == pytest.approx((1.0 / 4.0**got).sum())
     assert samples < w * h / 2
 
 
@@ -486,8 +578,7 @@ def _taps(weights: np.ndarray, x: int, y: int) -> dict[tuple[int, int], float]:
     return {(int(px), int(py)): float(weights[y, x, py, px]) for py, px in zip(ys, xs)}
 
 
-def _assert_taps(got: dict[tuple[int, int], float],
-                 expected: dict[tuple[int, int], float]) -> None:
+def _assert_taps(got: dict[tuple[int, int], float], expected: dict[tuple[int, int], float]) -> None:
     assert set(got) == set(expected), (got, expected)
     for key, value in expected.items():
         assert got[key] == pytest.approx(value, abs=1e-12), key
@@ -496,26 +587,30 @@ def _assert_taps(got: dict[tuple[int, int], float],
 GRID4 = np.full((12, 12), 2)  # 3 x 3 blocks of 4 x 4 pixels
 
 
-@pytest.mark.parametrize(("pixel", "expected"), [
-    # Next to the centre of the middle block: l = (-1/8, -1/8), ties take x as a0.
-    ((5, 5), {(5, 5): 0.765625, (3, 5): 0.109375, (5, 3): 0.109375, (3, 3): 0.015625}),
-    # On the block's left edge: l = (-3/8, -1/8).
-    ((4, 5), {(4, 5): 0.546875, (3, 5): 0.328125, (4, 3): 0.078125, (3, 3): 0.046875}),
-    # Its bottom edge: l = (-1/8, -3/8), so a0 is y.
-    ((5, 4), {(5, 4): 0.546875, (5, 3): 0.328125, (3, 4): 0.078125, (3, 3): 0.046875}),
-    # Its corner: l = (-3/8, -3/8).
-    ((4, 4), {(4, 4): 0.390625, (3, 4): 0.234375, (4, 3): 0.234375, (3, 3): 0.140625}),
-    # The top-right corner pixel of it looks up and right: l = (3/8, 3/8).
-    ((7, 7), {(7, 7): 0.390625, (8, 7): 0.234375, (7, 8): 0.234375, (8, 8): 0.140625}),
-    # Screen corner: every neighbour clamps back into the pixel's own block.
-    ((0, 0), {(0, 0): 1.0}),
-    # Screen bottom border: only the x interpolation is left.
-    ((1, 0), {(1, 0): 0.875, (0, 0): 0.125}),
-    # Screen right border, in the lower part of the top block row: x clamps, y looks up.
-    ((11, 6), {(11, 6): 0.875, (11, 8): 0.125}),
-])
-def test_hierarchical_weights_in_a_uniform_grid(pixel: tuple[int, int],
-                                                expected: dict[tuple[int, int], float]) -> None:
+@pytest.mark.parametrize(
+    ("pixel", "expected"),
+    [
+        # Next to the centre of the middle block: l = (-1/8, -1/8), ties take x as a0.
+        ((5, 5), {(5, 5): 0.765625, (3, 5): 0.109375, (5, 3): 0.109375, (3, 3): 0.015625}),
+        # On the block's left edge: l = (-3/8, -1/8).
+        ((4, 5), {(4, 5): 0.546875, (3, 5): 0.328125, (4, 3): 0.078125, (3, 3): 0.046875}),
+        # Its bottom edge: l = (-1/8, -3/8), so a0 is y.
+        ((5, 4), {(5, 4): 0.546875, (5, 3): 0.328125, (3, 4): 0.078125, (3, 3): 0.046875}),
+        # Its corner: l = (-3/8, -3/8).
+        ((4, 4), {(4, 4): 0.390625, (3, 4): 0.234375, (4, 3): 0.234375, (3, 3): 0.140625}),
+        # The top-right corner pixel of it looks up and right: l = (3/8, 3/8).
+        ((7, 7), {(7, 7): 0.390625, (8, 7): 0.234375, (7, 8): 0.234375, (8, 8): 0.140625}),
+        # Screen corner: every neighbour clamps back into the pixel's own block.
+        ((0, 0), {(0, 0): 1.0}),
+        # Screen bottom border: only the x interpolation is left.
+        ((1, 0), {(1, 0): 0.875, (0, 0): 0.125}),
+        # Screen right border, in the lower part of the top block row: x clamps, y looks up.
+        ((11, 6), {(11, 6): 0.875, (11, 8): 0.125}),
+    ],
+)
+def test_hierarchical_weights_in_a_uniform_grid(
+    pixel: tuple[int, int], expected: dict[tuple[int, int], float]
+) -> None:
     _assert_taps(_taps(_weights(GRID4), *pixel), expected)
 
 
@@ -526,27 +621,37 @@ def test_hierarchical_weights_where_block_sizes_meet() -> None:
     weights = _weights(level_map)
     # Big block, looking right into a small one: P0 = (4, 1) in the 2x2 block at (4, 0);
     # Q clamps into the own block; R = (4, 0) (below the clamp); l2 = (1.5 / 2) - 0.5 = 1/4.
-    _assert_taps(_taps(weights, 3, 1),
-                 {(3, 1): 0.625 * 0.875, (3, 0): 0.625 * 0.125,
-                  (4, 1): 0.375 * 0.75, (4, 0): 0.375 * 0.25})
+    _assert_taps(
+        _taps(weights, 3, 1),
+        {(3, 1): 0.625 * 0.875, (3, 0): 0.625 * 0.125, (4, 1): 0.375 * 0.75, (4, 0): 0.375 * 0.25},
+    )
     # Small block, looking left into the big one: l = (-1/4, 1/4), a0 = x; P0 = (3, 1) in the
     # 4x4 block; Q = (4, 2); R crosses the big block's top: (3, 4); l2 = 1.5 / 4 - 0.5 = -1/8.
-    _assert_taps(_taps(weights, 4, 1),
-                 {(4, 1): 0.75 * 0.75, (4, 2): 0.75 * 0.25,
-                  (3, 1): 0.25 * 0.875, (3, 4): 0.25 * 0.125})
+    _assert_taps(
+        _taps(weights, 4, 1),
+        {(4, 1): 0.75 * 0.75, (4, 2): 0.75 * 0.25, (3, 1): 0.25 * 0.875, (3, 4): 0.25 * 0.125},
+    )
 
 
 def test_bilinear_taps_sit_at_block_centre_pixels() -> None:
     # Uniform 4x4 grid: f = 5.5 / 4 - 0.5 = 0.875 per axis, blocks 0 and 1 read at pixels 2, 6.
-    _assert_taps(_taps(_weights(GRID4, bilinear_filter), 5, 5),
-                 {(2, 2): 0.015625, (6, 2): 0.109375, (2, 6): 0.109375, (6, 6): 0.765625})
+    _assert_taps(
+        _taps(_weights(GRID4, bilinear_filter), 5, 5),
+        {(2, 2): 0.015625, (6, 2): 0.109375, (2, 6): 0.109375, (6, 6): 0.765625},
+    )
     # Where sizes meet it keeps its own 4x4 grid: x taps 2 and 6 (6 lies in two different 2x2
     # blocks at y = 0 and y = 2), y taps -2 (clamped to 0) and 2.
     level_map = np.full((8, 8), 2)
     level_map[0:4, 4:8] = 1
-    _assert_taps(_taps(_weights(level_map, bilinear_filter), 3, 1),
-                 {(2, 0): 0.625 * 0.125, (6, 0): 0.375 * 0.125, (2, 2): 0.625 * 0.875,
-                  (6, 2): 0.375 * 0.875})
+    _assert_taps(
+        _taps(_weights(level_map, bilinear_filter), 3, 1),
+        {
+            (2, 0): 0.625 * 0.125,
+            (6, 0): 0.375 * 0.125,
+            (2, 2): 0.625 * 0.875,
+            (6, 2): 0.375 * 0.875,
+        },
+    )
 
 
 def test_level_zero_pixels_are_returned_exactly() -> None:
@@ -560,9 +665,13 @@ def test_level_zero_pixels_are_returned_exactly() -> None:
     np.testing.assert_array_equal(bilinear_filter(colours, np.zeros((17, 23), int)), colours)
 
 
-level_maps = st.integers(1, 9).flatmap(lambda h: st.integers(1, 9).flatmap(
-    lambda w: st.lists(st.integers(0, 5), min_size=h * w, max_size=h * w).map(
-        lambda v: np.array(v).reshape(h, w))))
+level_maps = st.integers(1, 9).flatmap(
+    lambda h: st.integers(1, 9).flatmap(
+        lambda w: st.lists(st.integers(0, 5), min_size=h * w, max_size=h * w).map(
+            lambda v: np.array(v).reshape(h, w)
+        )
+    )
+)
 
 
 @SWEEP
@@ -601,14 +710,15 @@ def test_output_stays_within_the_inputs() -> None:
 def test_filters_agree_where_the_level_is_uniform(s: int, w: int, h: int, seed: int) -> None:
     level_map = np.full((h, w), s)
     colours = block_image(np.random.default_rng(seed).random((h, w, 2)), level_map)
-    np.testing.assert_allclose(hierarchical_filter(colours, level_map),
-                               bilinear_filter(colours, level_map), atol=1e-12)
+    np.testing.assert_allclose(
+        hierarchical_filter(colours, level_map), bilinear_filter(colours, level_map), atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("s", [1, 2, 3, 4])
 @pytest.mark.parametrize("fn", [bilinear_filter, hierarchical_filter])
 def test_linear_ramps_are_reproduced(s: int, fn) -> None:
-    size = 2 ** s
+    size = 2**s
     h, w = 4 * size, 6 * size
     level_map = np.full((h, w), s)
     y, x = np.indices((h, w))
@@ -617,8 +727,12 @@ def test_linear_ramps_are_reproduced(s: int, fn) -> None:
     colours = ramp(x - x % size + size / 2, y - y % size + size / 2)
     out = fn(colours, level_map)
     # Between the first and last block centres the reconstruction is exact.
-    inside = ((x + 0.5 >= size / 2) & (x + 0.5 <= w - size / 2)
-              & (y + 0.5 >= size / 2) & (y + 0.5 <= h - size / 2))
+    inside = (
+        (x + 0.5 >= size / 2)
+        & (x + 0.5 <= w - size / 2)
+        & (y + 0.5 >= size / 2)
+        & (y + 0.5 <= h - size / 2)
+    )
     np.testing.assert_allclose(out[inside], ramp(x + 0.5, y + 0.5)[inside], atol=1e-12)
     # block_image samples the pixel O + L // 2, half a pixel past the geometric centre.
     sampled = fn(block_image(ramp(x + 0.5, y + 0.5), level_map), level_map)
@@ -641,12 +755,15 @@ def test_filters_accept_grey_images_and_reject_mismatched_maps() -> None:
     level_map = rng.integers(0, 3, (9, 11))
     rgb = np.repeat(grey[..., None], 3, axis=2)
     for fn in (hierarchical_filter, bilinear_filter):
-        np.testing.assert_allclose(fn(rgb, level_map), fn(grey, level_map)[..., None]
-                                   .repeat(3, axis=2))
+        np.testing.assert_allclose(
+            fn(rgb, level_map), fn(grey, level_map)[..., None].repeat(3, axis=2)
+        )
         with pytest.raises(ValueError):
             fn(grey, level_map[:, :5])
         assert fn(np.zeros((0, 0, 3)), np.zeros((0, 0), int)).shape == (0, 0, 3)
     # Out-of-range levels are clamped into 0..5 rather than indexing out of the image.
     np.testing.assert_array_equal(hierarchical_filter(grey, np.full((9, 11), -2)), grey)
-    np.testing.assert_allclose(hierarchical_filter(grey, np.full((9, 11), 9)),
-                               hierarchical_filter(grey, np.full((9, 11), 5)))
+    np.testing.assert_allclose(
+        hierarchical_filter(grey, np.full((9, 11), 9)),
+        hierarchical_filter(grey, np.full((9, 11), 5)),
+    )

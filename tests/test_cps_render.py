@@ -80,7 +80,7 @@ def away_from_marker(fi: FrameInput) -> np.ndarray:
     gu, gv = fi.gaze
     for e in range(2):
         cx, cy = int((e + gu) * W / 2), int(gv * H)
-        ok[max(0, cy - 14):cy + 14, max(0, cx - 14):cx + 14] = False
+        ok[max(0, cy - 14) : cy + 14, max(0, cx - 14) : cx + 14] = False
     return ok
 
 
@@ -89,8 +89,11 @@ def gl_rows(a: np.ndarray) -> np.ndarray:
 
 
 def test_gpu_level_map_matches_the_reference(host, scene):
-    for values in ({"cps__max_level": 5}, {"cps__max_level": 3, "cps__fovea_deg": 0.0},
-                   {"cps__max_level": 5, "cps__deg_per_level": 1.0}):
+    for values in (
+        {"cps__max_level": 5},
+        {"cps__max_level": 3, "cps__fovea_deg": 0.0},
+        {"cps__max_level": 5, "cps__deg_per_level": 1.0},
+    ):
         configure(host, cps__mode="cps", **values)
         fi = frame(host, scene)
         host.draw(fi)
@@ -125,7 +128,7 @@ def test_blocks_are_the_full_rate_image_at_block_centres(host, scene):
         for y in range(0, lv.shape[0], 32):
             for x in range(0, lv.shape[1], 32):
                 if lv[y, x] == 5:
-                    block = img[y:y + 32, x:x + 32].reshape(-1, 3)
+                    block = img[y : y + 32, x : x + 32].reshape(-1, 3)
                     assert np.ptp(block, axis=0).max() == 0.0
 
 
@@ -148,10 +151,14 @@ def test_gpu_filters_match_the_reference(host, scene, kind):
 
 def test_pipelines_and_dispatches_give_the_same_image(host, scene):
     images = []
-    for lighting, dispatch in (("fragment", "multi"), ("compute", "multi"),
-                               ("compute", "single")):
-        configure(host, cps__mode="cps", render__lighting=lighting, cps__dispatch=dispatch,
-                  cps__max_level=5)
+    for lighting, dispatch in (("fragment", "multi"), ("compute", "multi"), ("compute", "single")):
+        configure(
+            host,
+            cps__mode="cps",
+            render__lighting=lighting,
+            cps__dispatch=dispatch,
+            cps__max_level=5,
+        )
         images.append(host.draw(frame(host, scene)))
     assert np.array_equal(images[1], images[2])  # multi-level and single dispatch
     assert np.abs(images[0].astype(int) - images[1].astype(int)).max() <= 1
@@ -185,8 +192,7 @@ def test_hierarchical_filter_lowers_the_periphery_error(host, scene):
 
 
 def test_visualisation_paints_each_level_in_its_colour(host, scene):
-    configure(host, cps__mode="cps", cps__max_level=5, cps__fovea_deg=10.0,
-              cps__deg_per_level=4.0)
+    configure(host, cps__mode="cps", cps__max_level=5, cps__fovea_deg=10.0, cps__deg_per_level=4.0)
     fi = frame(host, scene, caps=[(5, 5, 5)] * 2)
     plain = host.draw(fi).astype(float)
     host.settings.cps.visualize = True
@@ -259,8 +265,7 @@ def test_temporal_filter_on_a_still_view_blends_towards_the_finer_image(host, sc
     configure(host)
     fi = frame(host, scene)
     full = host.draw(fi).astype(float)
-    configure(host, cps__mode="cps", cps__temporal=True, cps__reproject=reproject,
-              cps__max_level=4)
+    configure(host, cps__mode="cps", cps__temporal=True, cps__reproject=reproject, cps__max_level=4)
     for _ in range(4):
         out = host.draw(fi).astype(float)
     assert not host.renderer.errors
@@ -305,6 +310,7 @@ def test_the_level0_scissor_holds_every_full_rate_pixel():
 def test_reprojection_keeps_a_walking_view_from_smearing(host, scene):
     """Frames 0.1 s apart while walking (what a 10 fps preview shows): with reprojection the
     blended history lines up with the new frame; without, it is the old view, offset."""
+
     def walk(n):
         return frame(host, scene, t_frame=n)
 
@@ -313,8 +319,14 @@ def test_reprojection_keeps_a_walking_view_from_smearing(host, scene):
     full = host.draw(frames[-1]).astype(float)
     errors = {}
     for reproject in (True, False):
-        configure(host, cps__mode="cps", cps__temporal=True, cps__reproject=reproject,
-                  cps__max_level=3, cps__history_weight=0.8)
+        configure(
+            host,
+            cps__mode="cps",
+            cps__temporal=True,
+            cps__reproject=reproject,
+            cps__max_level=3,
+            cps__history_weight=0.8,
+        )
         for fi in frames:
             host.render_only(fi)
         out = host.read_pixels().astype(float)

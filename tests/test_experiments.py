@@ -21,12 +21,34 @@ def test_every_experiment_run_is_a_valid_bench(tmp_path):
             assert run.command().startswith("vrpreview bench --scene")
 
 
-def test_cps_bench_reports_fovea_and_periphery_errors_and_the_report_tabulates_it(tmp_path,
-                                                                                  capsys):
+def test_cps_bench_reports_fovea_and_periphery_errors_and_the_report_tabulates_it(tmp_path, capsys):
     out = tmp_path / "cps.json"
-    assert main(["bench", "--scene", "showroom", "--frames", "4", "--warmup", "1", "--stride",
-                 "30", "--size", "320x180", "--compare-every", "2", "--set", "cps.mode=cps",
-                 "--set", "render.lighting=fragment", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--scene",
+                "showroom",
+                "--frames",
+                "4",
+                "--warmup",
+                "1",
+                "--stride",
+                "30",
+                "--size",
+                "320x180",
+                "--compare-every",
+                "2",
+                "--set",
+                "cps.mode=cps",
+                "--set",
+                "render.lighting=fragment",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     r = json.loads(out.read_text())
     assert [f["path_frame"] for f in r["per_frame"]] == [0, 30, 60, 90] and r["stride"] == 30
     err = r["error_vs_full_quality"]

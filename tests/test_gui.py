@@ -45,8 +45,7 @@ def grab(w: MainWindow) -> np.ndarray:
 def send_mouse(view, kind, pos: QPoint, button=Qt.MouseButton.NoButton):
     buttons = button if kind != QMouseEvent.Type.MouseButtonRelease else Qt.MouseButton.NoButton
     p = QPointF(pos)
-    ev = QMouseEvent(kind, p, view.mapToGlobal(p), button, buttons,
-                     Qt.KeyboardModifier.NoModifier)
+    ev = QMouseEvent(kind, p, view.mapToGlobal(p), button, buttons, Qt.KeyboardModifier.NoModifier)
     QApplication.sendEvent(view, ev)
 
 
@@ -192,8 +191,9 @@ def test_cps_panel_drives_the_model_the_picture_and_shows_live_statistics(window
     window.wait_for_load()
     full = grab(window)
     # One control for the mitigation modes: CPS in the graphics pipeline.
-    index = next(i for i in range(panel.mode.count())
-                 if panel.mode.itemData(i) == ("cps", "fragment"))
+    index = next(
+        i for i in range(panel.mode.count()) if panel.mode.itemData(i) == ("cps", "fragment")
+    )
     panel.mode.setCurrentIndex(index)
     assert s.cps.mode == "cps" and s.render.lighting == "fragment"
     assert not panel.dispatch.isEnabled()  # dispatch only means something in compute
@@ -217,8 +217,9 @@ def test_cps_panel_drives_the_model_the_picture_and_shows_live_statistics(window
     assert "%" in panel.share_label.text() and panel.samples_label.text() != "-"
     assert len(stats["edge_caps"]) == 2 and all(len(e) == 3 for e in stats["edge_caps"])
     # The compute pipeline enables the dispatch choice; "none" restores the full-rate picture.
-    index = next(i for i in range(panel.mode.count())
-                 if panel.mode.itemData(i) == ("cps", "compute"))
+    index = next(
+        i for i in range(panel.mode.count()) if panel.mode.itemData(i) == ("cps", "compute")
+    )
     panel.mode.setCurrentIndex(index)
     assert s.render.lighting == "compute" and panel.dispatch.isEnabled()
     panel.visualize.setChecked(False)
@@ -251,9 +252,10 @@ def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, q
     # The reuse overlay paints the right eye green (reused) and red (gathered).
     panel.controls.editors["photons.show_reuse"].setChecked(True)
     painted = grab(window).astype(int)
-    right = painted[:, painted.shape[1] // 2:]
+    right = painted[:, painted.shape[1] // 2 :]
     assert (right[..., 1] - right[..., 0]).mean() > (
-        after[:, after.shape[1] // 2:, 1].astype(int) - after[:, after.shape[1] // 2:, 0]).mean()
+        after[:, after.shape[1] // 2 :, 1].astype(int) - after[:, after.shape[1] // 2 :, 0]
+    ).mean()
     # A radius that needs too many cells: a clear message, the window keeps drawing.
     panel.controls.editors["photons.show_reuse"].setChecked(False)
     panel.controls.editors["photons.radius_m"].setValue(0.001)

@@ -72,14 +72,17 @@ def check_queries(grid: HashGrid, positions: np.ndarray, queries: np.ndarray) ->
 
 
 @pytest.mark.parametrize("cpr", [1, 2])
-@pytest.mark.parametrize("offset,scale,r", [
-    (0.0, 5.0, 0.3),
-    (-40.0, 10.0, 0.7),  # negative coordinates
-    (1e6, 100.0, 1.0),  # large coordinates
-    (-1e6, 1000.0, 37.0),
-    (1e6, 5000.0, 1000.0),
-    (0.25, 1e-8, 1e-9),  # tiny radius, few photons close together
-])
+@pytest.mark.parametrize(
+    "offset,scale,r",
+    [
+        (0.0, 5.0, 0.3),
+        (-40.0, 10.0, 0.7),  # negative coordinates
+        (1e6, 100.0, 1.0),  # large coordinates
+        (-1e6, 1000.0, 37.0),
+        (1e6, 5000.0, 1000.0),
+        (0.25, 1e-8, 1e-9),  # tiny radius, few photons close together
+    ],
+)
 def test_structure_and_queries_vs_brute_force(cpr, offset, scale, r) -> None:
     rng = np.random.default_rng(7)
     n = 400 if r >= 0.3 else 12
@@ -123,8 +126,13 @@ def test_empty_and_single_photon() -> None:
         grid = HashGrid.build(one, 0.5, cpr)
         assert grid.dims == (2 * cpr + 1,) * 3
         check_structure(grid, one)
-        check_queries(grid, one, np.array([[1.5, -2.0, 3.0], [1.9, -2.0, 3.0], [2.2, -2, 3],
-                                           [1.5, -2.49, 3.0], [10.0, 0, 0]]))
+        check_queries(
+            grid,
+            one,
+            np.array(
+                [[1.5, -2.0, 3.0], [1.9, -2.0, 3.0], [2.2, -2, 3], [1.5, -2.49, 3.0], [10.0, 0, 0]]
+            ),
+        )
 
 
 def test_outside_and_nan_points_visit_nothing() -> None:
@@ -171,8 +179,7 @@ def test_grid_too_large_message() -> None:
         HashGrid.build(pos, 10.0, max_cells=grid.cell_count - 1)
 
 
-@pytest.mark.parametrize("cpr,theory", [(1, 4 / 3 * math.pi / 27),
-                                        (2, 4 / 3 * math.pi * 8 / 125)])
+@pytest.mark.parametrize("cpr,theory", [(1, 4 / 3 * math.pi / 27), (2, 4 / 3 * math.pi * 8 / 125)])
 def test_within_share_matches_theory(cpr, theory) -> None:
     rng = np.random.default_rng(11)
     side = 30.0
@@ -187,12 +194,14 @@ coord = st.floats(-50.0, 50.0, allow_nan=False, width=32)
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(pts=st.lists(st.tuples(coord, coord, coord), min_size=0, max_size=25),
-       qs=st.lists(st.tuples(coord, coord, coord), min_size=1, max_size=6),
-       base=st.sampled_from([0.0, -1e6, 1e6, 123.25]),
-       unit=st.sampled_from([1e-3, 0.1, 1.0, 20.0]),
-       r=st.sampled_from([1.0, 3.0, 7.5, 100.0]),
-       cpr=st.sampled_from([1, 2]))
+@given(
+    pts=st.lists(st.tuples(coord, coord, coord), min_size=0, max_size=25),
+    qs=st.lists(st.tuples(coord, coord, coord), min_size=1, max_size=6),
+    base=st.sampled_from([0.0, -1e6, 1e6, 123.25]),
+    unit=st.sampled_from([1e-3, 0.1, 1.0, 20.0]),
+    r=st.sampled_from([1.0, 3.0, 7.5, 100.0]),
+    cpr=st.sampled_from([1, 2]),
+)
 def test_property_candidates_hold_all_within_r(pts, qs, base, unit, r, cpr) -> None:
     pos = (base + np.array(pts, np.float64).reshape(-1, 3) * unit).astype(np.float32)
     r *= unit
@@ -201,8 +210,9 @@ def test_property_candidates_hold_all_within_r(pts, qs, base, unit, r, cpr) -> N
     # queries near the photons (and at them), in the photons' units
     q = base + np.array(qs, np.float64).reshape(-1, 3) * unit
     if len(pos):
-        q = np.concatenate([q, pos[:3].astype(np.float64),
-                            pos[:3] + np.array(qs[:1]) * unit * 0.01])
+        q = np.concatenate(
+            [q, pos[:3].astype(np.float64), pos[:3] + np.array(qs[:1]) * unit * 0.01]
+        )
     check_queries(grid, pos, q)
 
 

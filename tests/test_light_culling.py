@@ -58,8 +58,9 @@ def test_culling_keeps_the_picture_and_cuts_light_evaluations(name, lighting):
 
 def test_a_tile_with_more_lights_than_its_list_holds_uses_every_light():
     scene = checker_scene()
-    scene.lights = [PointLight((0.02 * i - 1.5, 1.6, -0.5), (1.0, 0.9, 0.8), 0.2, 50.0)
-                    for i in range(150)]  # every light reaches every pixel: > 128 per tile
+    scene.lights = [
+        PointLight((0.02 * i - 1.5, 1.6, -0.5), (1.0, 0.9, 0.8), 0.2, 50.0) for i in range(150)
+    ]  # every light reaches every pixel: > 128 per tile
     s = Settings()
     s.render.overlay = False
     with OffscreenHost(W, H, s) as host:

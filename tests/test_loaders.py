@@ -37,9 +37,12 @@ SAMPLES = SCENES / "gltf-samples"
 
 def _require_scenes() -> None:
     if not (SIBENIK.is_file() and SAMPLES.is_dir()):
-        pytest.fail(f"shared test scenes not found at {SCENES} (expected sibenik/sibenik.obj and "
-                    "gltf-samples/); check out the shared scenes next to the repository or set "
-                    "VRPREVIEW_SCENES to their folder", pytrace=False)
+        pytest.fail(
+            f"shared test scenes not found at {SCENES} (expected sibenik/sibenik.obj and "
+            "gltf-samples/); check out the shared scenes next to the repository or set "
+            "VRPREVIEW_SCENES to their folder",
+            pytrace=False,
+        )
 
 
 def _model_files() -> list[Path]:
@@ -67,8 +70,9 @@ def _sample(name: str, binary: bool = False) -> Path:
 def _forward(yaw_deg: float, pitch_deg: float = 0.0) -> np.ndarray:
     """The Viewpoint convention: yaw 0 looks down -Z, positive yaw turns left."""
     yaw, pitch = math.radians(yaw_deg), math.radians(pitch_deg)
-    return np.array([-math.sin(yaw) * math.cos(pitch), math.sin(pitch),
-                     -math.cos(yaw) * math.cos(pitch)])
+    return np.array(
+        [-math.sin(yaw) * math.cos(pitch), math.sin(pitch), -math.cos(yaw) * math.cos(pitch)]
+    )
 
 
 def _expected_texture_sizes(model: Path) -> dict[str, tuple[int, int]]:
@@ -105,8 +109,16 @@ def _expected_texture_sizes(model: Path) -> dict[str, tuple[int, int]]:
 def test_shared_scenes_are_present() -> None:
     _require_scenes()
     names = {p.parent.parent.name for p in MODELS[1:]}
-    for expected in ("Box", "BoxTextured", "BoxVertexColors", "CesiumMilkTruck", "Duck",
-                     "TextureCoordinateTest", "TextureSettingsTest", "TwoSidedPlane"):
+    for expected in (
+        "Box",
+        "BoxTextured",
+        "BoxVertexColors",
+        "CesiumMilkTruck",
+        "Duck",
+        "TextureCoordinateTest",
+        "TextureSettingsTest",
+        "TwoSidedPlane",
+    ):
         assert expected in names, f"gltf-samples/{expected} is missing from {SAMPLES}"
 
 
@@ -297,8 +309,10 @@ def test_small_objects_are_viewed_from_outside(name: str) -> None:
     to_centre = centre - eye
     distance = float(np.linalg.norm(to_centre))
     assert distance > radius, "the spawn is inside the object's bounding sphere"
-    assert float(np.dot(_forward(scene.spawn.yaw_deg, scene.spawn.pitch_deg),
-                        to_centre / distance)) > 0.99
+    assert (
+        float(np.dot(_forward(scene.spawn.yaw_deg, scene.spawn.pitch_deg), to_centre / distance))
+        > 0.99
+    )
     fill = 2.0 * math.degrees(math.asin(radius / distance)) / 90.0
     assert 0.5 <= fill <= 0.7, f"the object fills {fill:.0%} of a 90 degree view"
 
@@ -308,15 +322,19 @@ def test_gltf_punctual_lights_replace_the_defaults(tmp_path: Path) -> None:
     doc = json.loads(src.read_text())
     shutil.copy(src.parent / "Box0.bin", tmp_path / "Box0.bin")
     doc.setdefault("extensionsUsed", []).append("KHR_lights_punctual")
-    doc["extensions"] = {"KHR_lights_punctual": {"lights": [
-        {"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 20.0, "range": 7.0},
-        {"type": "directional"},
-    ]}}
-    doc["nodes"].append({"translation": [1.0, 2.0, 3.0],
-                         "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    doc["extensions"] = {
+        "KHR_lights_punctual": {
+            "lights": [
+                {"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 20.0, "range": 7.0},
+                {"type": "directional"},
+            ]
+        }
+    }
+    doc["nodes"].append(
+        {"translation": [1.0, 2.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}
+    )
     doc["nodes"].append({"extensions": {"KHR_lights_punctual": {"light": 1}}})
-    doc["scenes"][doc.get("scene", 0)]["nodes"] += [len(doc["nodes"]) - 2,
-                                                    len(doc["nodes"]) - 1]
+    doc["scenes"][doc.get("scene", 0)]["nodes"] += [len(doc["nodes"]) - 2, len(doc["nodes"]) - 1]
     (tmp_path / "lit.gltf").write_text(json.dumps(doc))
     scene = load_scene(tmp_path / "lit.gltf")
     assert len(scene.lights) == 1
@@ -348,8 +366,9 @@ def test_gltf_scene_option_asks_for_indirect_light(tmp_path: Path, where: str) -
 # ------------------------------------------------------------------------------------------
 
 
-def _box_faces(lo: tuple[float, float, float], hi: tuple[float, float, float], inward: bool,
-               first: int) -> tuple[list[str], list[str]]:
+def _box_faces(
+    lo: tuple[float, float, float], hi: tuple[float, float, float], inward: bool, first: int
+) -> tuple[list[str], list[str]]:
     """OBJ lines for an axis-aligned box whose quads face in (a room) or out (furniture)."""
     (x0, y0, z0), (x1, y1, z1) = lo, hi
     corners = [(x, y, z) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
@@ -435,8 +454,7 @@ def test_empty_obj(tmp_path: Path) -> None:
 
 def test_obj_with_nan_vertices(tmp_path: Path) -> None:
     path = tmp_path / "nan.obj"
-    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 1\nv 0 0 1\n"
-                    "f 1 2 3\nf 1 2 4\nf 1 3 5\n")
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 1\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 5\n")
     scene = load_scene(path)
     assert scene.triangle_count == 2
     assert all(np.isfinite(m.positions).all() for m in scene.meshes)
@@ -445,8 +463,10 @@ def test_obj_with_nan_vertices(tmp_path: Path) -> None:
 
 def test_missing_texture_falls_back_to_colour(tmp_path: Path) -> None:
     (tmp_path / "m.mtl").write_text("newmtl paint\nKd 0.5 0.5 0.5\nd 0.5\nmap_Kd gone.png\n")
-    (tmp_path / "t.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
-                                    "vt 0 0\nvt 1 0\nvt 0 1\nusemtl paint\nf 1/1 2/2 3/3\n")
+    (tmp_path / "t.obj").write_text(
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+        "vt 0 0\nvt 1 0\nvt 0 1\nusemtl paint\nf 1/1 2/2 3/3\n"
+    )
     scene = load_scene(tmp_path / "t.obj")
     mat = scene.materials[scene.meshes[0].material]
     assert mat.texture is None

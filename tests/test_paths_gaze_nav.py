@@ -33,8 +33,13 @@ def box_room(half=2.0, height=3.0):
 
 
 def test_path_interpolates_and_round_trips(tmp_path):
-    p = CameraPath([PathKey(0.0, (0, 1.6, 0), 0, 0, (0.2, 0.2), False),
-                    PathKey(2.0, (2, 1.6, 0), 90, 10, (0.8, 0.6), True)], "room")
+    p = CameraPath(
+        [
+            PathKey(0.0, (0, 1.6, 0), 0, 0, (0.2, 0.2), False),
+            PathKey(2.0, (2, 1.6, 0), 90, 10, (0.8, 0.6), True),
+        ],
+        "room",
+    )
     k = p.sample(1.0)
     assert k.position == pytest.approx((1, 1.6, 0)) and k.yaw_deg == pytest.approx(45)
     assert k.gaze == pytest.approx((0.5, 0.4)) and k.gaze_fixed is False
@@ -45,12 +50,15 @@ def test_path_interpolates_and_round_trips(tmp_path):
     assert CameraPath.load(tmp_path / "p.json").to_dict() == p.to_dict()
 
 
-@pytest.mark.parametrize("doc, message", [
-    ({"keys": []}, "not a vrpreview path"),
-    ({"vrpreview_path": 1, "keys": []}, "no keys"),
-    ({"vrpreview_path": 1, "keys": [{"t": 0}]}, "malformed"),
-    ({"vrpreview_path": 1, "keys": [{"t": 0, "position": [0, "NaN", 0]}]}, "non-finite"),
-])
+@pytest.mark.parametrize(
+    "doc, message",
+    [
+        ({"keys": []}, "not a vrpreview path"),
+        ({"vrpreview_path": 1, "keys": []}, "no keys"),
+        ({"vrpreview_path": 1, "keys": [{"t": 0}]}, "malformed"),
+        ({"vrpreview_path": 1, "keys": [{"t": 0, "position": [0, "NaN", 0]}]}, "non-finite"),
+    ],
+)
 def test_bad_paths_are_rejected_clearly(tmp_path, doc, message):
     f = tmp_path / "bad.json"
     f.write_text(json.dumps(doc))

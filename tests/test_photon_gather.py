@@ -50,8 +50,9 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def _robust(photons: PhotonMap, points: np.ndarray, normals: np.ndarray, r: float,
-            eps: float = 1e-4) -> PhotonMap:
+def _robust(
+    photons: PhotonMap, points: np.ndarray, normals: np.ndarray, r: float, eps: float = 1e-4
+) -> PhotonMap:
     """``photons`` without those at distance ~r from a point or with dot(N, dir) ~ 0 for a
     point within r (valid points only)."""
     ok = np.isfinite(points).all(axis=1) & np.isfinite(normals).all(axis=1)
@@ -59,8 +60,7 @@ def _robust(photons: PhotonMap, points: np.ndarray, normals: np.ndarray, r: floa
     if len(photons) == 0 or len(pts) == 0:
         return photons
     pos = photons.positions.astype(np.float64)
-    pairs = cKDTree(pts).sparse_distance_matrix(cKDTree(pos), r * (1 + eps),
-                                                output_type="ndarray")
+    pairs = cKDTree(pts).sparse_distance_matrix(cKDTree(pos), r * (1 + eps), output_type="ndarray")
     i, j = pairs["i"], pairs["j"]
     d2 = ((pts[i] - pos[j]) ** 2).sum(axis=1)
     facing = (nrm[i] * photons.directions.astype(np.float64)[j]).sum(axis=1)
@@ -75,7 +75,7 @@ def _photons(rng: np.random.Generator, n: int, lo=0.0, hi=1.0) -> PhotonMap:
     pos = rng.uniform(lo, hi, (n, 3))
     third = n // 3
     pos[:third, 1] = 0.25  # a floor
-    pos[third:2 * third, 2] = 0.6  # a wall
+    pos[third : 2 * third, 2] = 0.6  # a wall
     dirs = _unit(rng.normal(size=(n, 3)))
     power = rng.uniform(0.2, 1.0, (n, 3)) * np.array([1.0, 0.5, 2.0])
     return PhotonMap(pos, power, encode_directions(dirs))
@@ -99,12 +99,15 @@ def data():
 def _close(gpu: np.ndarray, ref: np.ndarray) -> None:
     scale = float(np.abs(ref).mean()) or 1.0
     bad = ~np.isclose(gpu, ref, rtol=1e-3, atol=1e-6 * scale)
-    assert not bad.any(), (f"{int(bad.any(axis=1).sum())} of {len(ref)} points differ, e.g. "
-                           f"{gpu[bad.any(axis=1)][:3]} vs {ref[bad.any(axis=1)][:3]}")
+    assert not bad.any(), (
+        f"{int(bad.any(axis=1).sum())} of {len(ref)} points differ, e.g. "
+        f"{gpu[bad.any(axis=1)][:3]} vs {ref[bad.any(axis=1)][:3]}"
+    )
 
 
-def _knn_brute(photons: PhotonMap, pts: np.ndarray, nrm: np.ndarray, r: float, k: int
-               ) -> tuple[np.ndarray, np.ndarray]:
+def _knn_brute(
+    photons: PhotonMap, pts: np.ndarray, nrm: np.ndarray, r: float, k: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The k-nearest estimate by a full sort per point, and which points are unambiguous (the
     k-th and (k+1)-th counted distances not within rounding of each other)."""
     pos = photons.positions.astype(np.float64)
@@ -126,6 +129,7 @@ def _knn_brute(photons: PhotonMap, pts: np.ndarray, nrm: np.ndarray, r: float, k
 
 
 # -- the estimate at points ----------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_variant_matches_reference(gl, data, variant):
@@ -170,8 +174,9 @@ def test_heap_full_at_distance_zero_falls_back(gl):
     n = np.array([[0.0, 0.0, 1.0]], np.float32)
     pos = np.array([[0.5, 0.5, 0.5]] * 3 + [[0.52, 0.5, 0.5], [0.5, 0.45, 0.5]])
     dirs = np.tile([0.0, 0.0, -1.0], (5, 1))
-    photons = PhotonMap(pos, np.arange(1, 16, dtype=np.float64).reshape(5, 3),
-                        encode_directions(dirs))
+    photons = PhotonMap(
+        pos, np.arange(1, 16, dtype=np.float64).reshape(5, 3), encode_directions(dirs)
+    )
     ref = estimate_knn(photons, p, n, R, 3)
     for variant in ("heap", "kdtree-heap"):
         gmap = GpuPhotonMap(ctx, photons, R, STRUCTURE_OF[variant])
@@ -185,8 +190,9 @@ def test_heap_full_at_distance_zero_falls_back(gl):
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_no_photons_and_one_photon(gl, variant):
     ctx, gather = gl
-    pts = np.array([[0.5, 0.5, 0.5], [0.55, 0.5, 0.5], [0.7, 0.5, 0.5], [0.5, 0.5, 0.52]],
-                   np.float32)
+    pts = np.array(
+        [[0.5, 0.5, 0.5], [0.55, 0.5, 0.5], [0.7, 0.5, 0.5], [0.5, 0.5, 0.52]], np.float32
+    )
     nrm = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [0, 0, -1]], np.float32)
     gmap = GpuPhotonMap(ctx, PhotonMap.empty(), R, STRUCTURE_OF[variant])
     try:
@@ -194,8 +200,11 @@ def test_no_photons_and_one_photon(gl, variant):
         assert not gather.gather_points(gmap, pts, nrm, variant, k=K).any()
     finally:
         gmap.release()
-    one = PhotonMap(np.array([[0.5, 0.5, 0.5]]), np.array([[1.0, 2.0, 3.0]]),
-                    encode_directions(np.array([[0.0, 0.0, -1.0]])))
+    one = PhotonMap(
+        np.array([[0.5, 0.5, 0.5]]),
+        np.array([[1.0, 2.0, 3.0]]),
+        encode_directions(np.array([[0.0, 0.0, -1.0]])),
+    )
     gmap = GpuPhotonMap(ctx, one, R, STRUCTURE_OF[variant])
     try:
         gpu = gather.gather_points(gmap, pts, nrm, variant, k=K)
@@ -211,9 +220,20 @@ def test_points_outside_and_not_finite(gl, data, variant):
     ctx, gather = gl
     photons, _, _ = data
     inf, nan = np.inf, np.nan
-    pts = np.array([[5.0, 0.5, 0.5], [-3.0, -3.0, -3.0], [1e30, 0.5, 0.5], [-1e30, 1e30, 0.0],
-                    [nan, 0.5, 0.5], [0.5, inf, 0.5], [0.5, 0.5, 0.5], [0.5, 0.25, 0.5],
-                    [1.0 + R * 0.999, 0.5, 0.5]], np.float32)
+    pts = np.array(
+        [
+            [5.0, 0.5, 0.5],
+            [-3.0, -3.0, -3.0],
+            [1e30, 0.5, 0.5],
+            [-1e30, 1e30, 0.0],
+            [nan, 0.5, 0.5],
+            [0.5, inf, 0.5],
+            [0.5, 0.5, 0.5],
+            [0.5, 0.25, 0.5],
+            [1.0 + R * 0.999, 0.5, 0.5],
+        ],
+        np.float32,
+    )
     nrm = np.tile(np.array([0.0, 0.0, 1.0], np.float32), (len(pts), 1))
     nrm[6] = [nan, 0.0, 1.0]
     nrm[7] = [0.0, -inf, 0.0]
@@ -224,8 +244,11 @@ def test_points_outside_and_not_finite(gl, data, variant):
         gmap.release()
     assert np.isfinite(gpu).all()
     assert not gpu[:8].any()
-    ref = estimate_knn(photons, pts, nrm, R, K) if "heap" in variant else \
-        estimate_radius(photons, pts, nrm, R)
+    ref = (
+        estimate_knn(photons, pts, nrm, R, K)
+        if "heap" in variant
+        else estimate_radius(photons, pts, nrm, R)
+    )
     _close(gpu, ref)  # the last point, just outside the photons' box, still sees some
 
 
@@ -246,8 +269,9 @@ def test_radius_half_equals_radius(gl, data):
     np.testing.assert_allclose(c, a, rtol=1e-5, atol=1e-6 * a.mean())
 
 
-def _clustered(rng: np.random.Generator, grid: HashGrid, groups: int
-               ) -> tuple[np.ndarray, np.ndarray]:
+def _clustered(
+    rng: np.random.Generator, grid: HashGrid, groups: int
+) -> tuple[np.ndarray, np.ndarray]:
     """``groups`` runs of 64 points, each run inside one grid cell."""
     cells = rng.integers(grid.reach + 1, np.array(grid.dims) - grid.reach - 1, (groups, 3))
     inner = rng.uniform(0.05, 0.95, (groups, 64, 3))
@@ -331,11 +355,18 @@ def test_bad_arguments(gl, data):
 
 # -- the G-buffer entry --------------------------------------------------------------------------
 
+
 def _perspective(fov_deg: float, aspect: float, near: float, far: float) -> np.ndarray:
     f = 1.0 / math.tan(math.radians(fov_deg) / 2.0)
-    return np.array([[f / aspect, 0, 0, 0], [0, f, 0, 0],
-                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)],
-                     [0, 0, -1, 0]], np.float64)
+    return np.array(
+        [
+            [f / aspect, 0, 0, 0],
+            [0, f, 0, 0],
+            [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)],
+            [0, 0, -1, 0],
+        ],
+        np.float64,
+    )
 
 
 class GBuffer:
@@ -343,8 +374,15 @@ class GBuffer:
     back wall (z = 0.6, |x - 0.5| < 0.35); elsewhere background. Depth goes in an R32F texture
     (the entry reads only .r) so the test knows exactly what the GPU reconstructs."""
 
-    def __init__(self, ctx: moderngl.Context, w: int, h: int, eye=(0.5, 0.55, 1.6),
-                 wall_z: float = 0.6, fov: float = 50.0) -> None:
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        w: int,
+        h: int,
+        eye=(0.5, 0.55, 1.6),
+        wall_z: float = 0.6,
+        fov: float = 50.0,
+    ) -> None:
         self.size = (w, h)
         proj = _perspective(fov, w / h, 0.1, 10.0)
         view = np.eye(4)
@@ -357,8 +395,7 @@ class GBuffer:
         o = np.asarray(eye, np.float64)
         d = far - o
         t_floor = np.where(d[..., 1] < 0, (0.25 - o[1]) / np.minimum(d[..., 1], -1e-12), np.inf)
-        t_wall = np.where(d[..., 2] < 0, (wall_z - o[2]) / np.minimum(d[..., 2], -1e-12),
-                          np.inf)
+        t_wall = np.where(d[..., 2] < 0, (wall_z - o[2]) / np.minimum(d[..., 2], -1e-12), np.inf)
         x_wall = o[0] + t_wall * d[..., 0]
         y_wall = o[1] + t_wall * d[..., 1]
         t_wall = np.where((np.abs(x_wall - 0.5) < 0.35) & (y_wall > 0.25), t_wall, np.inf)
@@ -395,10 +432,12 @@ class GBuffer:
         self.normal.release()
 
 
-def _out_texture(ctx: moderngl.Context, size: tuple[int, int], fill: float = -7.0
-                 ) -> moderngl.Texture:
-    tex = ctx.texture(size, 4, np.full(size[0] * size[1] * 4, fill, np.float32).tobytes(),
-                      dtype="f4")
+def _out_texture(
+    ctx: moderngl.Context, size: tuple[int, int], fill: float = -7.0
+) -> moderngl.Texture:
+    tex = ctx.texture(
+        size, 4, np.full(size[0] * size[1] * 4, fill, np.float32).tobytes(), dtype="f4"
+    )
     tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
     return tex
 
@@ -426,8 +465,16 @@ def _gather_image(gl, gmap, variant, eye, out_size=None, **kw) -> np.ndarray:
     ctx, gather = gl
     out = _out_texture(ctx, out_size or eye.size)
     try:
-        gather.gather_image(gmap, variant, depth=eye.depth, normal=eye.normal,
-                            inv_view_projection=eye.inv_vp, size=eye.size, out=out, **kw)
+        gather.gather_image(
+            gmap,
+            variant,
+            depth=eye.depth,
+            normal=eye.normal,
+            inv_view_projection=eye.inv_vp,
+            size=eye.size,
+            out=out,
+            **kw,
+        )
         return _read(out)
     finally:
         out.release()
@@ -473,7 +520,8 @@ def test_image_shared_with_whole_tiles_in_one_cell(gl):
         cells = grid.hash(grid.cell_coords(eye.points.reshape(-1, 3))).reshape(40, 48)
         tiles = cells.reshape(5, 8, 6, 8).transpose(0, 2, 1, 3).reshape(30, 64)
         one = (tiles == tiles[:, :1]).all(axis=1) & eye.hit.reshape(5, 8, 6, 8).transpose(
-            0, 2, 1, 3).reshape(30, 64).all(axis=1)
+            0, 2, 1, 3
+        ).reshape(30, 64).all(axis=1)
         assert 5 <= one.sum() < 30  # both paths of Algorithm 1 run
         gmap = GpuPhotonMap(ctx, photons, R, "grid")
         try:
@@ -505,8 +553,9 @@ def test_block_rate_writes_only_sample_pixels(gl, eye, eye_photons, variant):
     levels = _level_texture(ctx, half)
     gmap = GpuPhotonMap(ctx, eye_photons, R, "grid")
     try:
-        img = _gather_image(gl, gmap, variant, eye, out_size=(64, 56), block_rate=True,
-                            levels=levels)
+        img = _gather_image(
+            gl, gmap, variant, eye, out_size=(64, 56), block_rate=True, levels=levels
+        )
     finally:
         gmap.release()
         levels.release()
@@ -515,8 +564,9 @@ def test_block_rate_writes_only_sample_pixels(gl, eye, eye_photons, variant):
     ys, xs = np.mgrid[0:h, 0:w]
     s = half[ys >> 1, xs >> 1]
     ox, oy = xs & ~((1 << s) - 1), ys & ~((1 << s) - 1)
-    sample = (xs == np.minimum(ox + ((1 << s) >> 1), w - 1)) & \
-        (ys == np.minimum(oy + ((1 << s) >> 1), h - 1))
+    sample = (xs == np.minimum(ox + ((1 << s) >> 1), w - 1)) & (
+        ys == np.minimum(oy + ((1 << s) >> 1), h - 1)
+    )
     written = (img != -7.0).any(axis=2)
     assert (written == sample).all()
     assert (img[sample & ~eye.hit] == 0.0).all()
@@ -544,8 +594,9 @@ def test_reuse_copies_left_result_where_a_winner_is_set(gl, eye, eye_photons, va
     gmap = GpuPhotonMap(ctx, eye_photons, R, STRUCTURE_OF[variant])
     try:
         gather.reset_counters()
-        img = _gather_image(gl, gmap, variant, eye, out_size=(64, 56),
-                            reuse=(win_tex, left_tex), count=True)
+        img = _gather_image(
+            gl, gmap, variant, eye, out_size=(64, 56), reuse=(win_tex, left_tex), count=True
+        )
         counts = gather.counters()
     finally:
         gmap.release()

@@ -15,12 +15,16 @@ from app.photon_ref import build_tree, estimate_knn, estimate_radius
 def make_photons(n: int, seed: int = 0, scale: float = 1.0, offset: float = 0.0) -> PhotonMap:
     rng = np.random.default_rng(seed)
     d = rng.normal(size=(n, 3))
-    return PhotonMap((offset + rng.random((n, 3)) * scale).astype(np.float32),
-                     rng.random((n, 3)).astype(np.float32), encode_directions(d))
+    return PhotonMap(
+        (offset + rng.random((n, 3)) * scale).astype(np.float32),
+        rng.random((n, 3)).astype(np.float32),
+        encode_directions(d),
+    )
 
 
-def brute(ph: PhotonMap, pts: np.ndarray, nrm: np.ndarray, r: float,
-          k: int | None = None) -> np.ndarray:
+def brute(
+    ph: PhotonMap, pts: np.ndarray, nrm: np.ndarray, r: float, k: int | None = None
+) -> np.ndarray:
     """The estimate by definition: full sort per point, no tree."""
     pos = ph.positions.astype(np.float64)
     dirs = ph.directions.astype(np.float64)
@@ -57,8 +61,9 @@ def test_radius_vs_brute_force(r) -> None:
     if r >= 0.15:
         assert (got > 0).any()
     # a prebuilt tree and a single worker give the same
-    np.testing.assert_allclose(estimate_radius(ph, pts, nrm, r, tree=build_tree(ph), workers=1),
-                               got, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(
+        estimate_radius(ph, pts, nrm, r, tree=build_tree(ph), workers=1), got, rtol=1e-12, atol=0
+    )
 
 
 @pytest.mark.parametrize("r,k", [(0.1, 1), (0.1, 8), (0.3, 8), (0.3, 60), (0.05, 500)])
@@ -76,10 +81,14 @@ def test_knn_needs_more_neighbours_than_first_asked() -> None:
     near = rng.normal(0, 0.01, (n_away, 3))
     far = rng.normal(0, 1, (n_toward, 3))
     far = 0.05 + 0.02 * far / np.linalg.norm(far, axis=1, keepdims=True)
-    dirs = np.concatenate([np.tile([0.0, 0.0, 1.0], (n_away, 1)),
-                           np.tile([0.0, 0.0, -1.0], (n_toward, 1))])
-    ph = PhotonMap(np.concatenate([near, far]).astype(np.float32),
-                   rng.random((n_away + n_toward, 3)).astype(np.float32), encode_directions(dirs))
+    dirs = np.concatenate(
+        [np.tile([0.0, 0.0, 1.0], (n_away, 1)), np.tile([0.0, 0.0, -1.0], (n_toward, 1))]
+    )
+    ph = PhotonMap(
+        np.concatenate([near, far]).astype(np.float32),
+        rng.random((n_away + n_toward, 3)).astype(np.float32),
+        encode_directions(dirs),
+    )
     pts = np.zeros((3, 3))
     nrm = np.tile([0.0, 0.0, 1.0], (3, 1))
     for k in (5, 20, 49, 50, 51):
@@ -104,11 +113,13 @@ def test_tiny_and_huge_radius() -> None:
     pts, nrm = queries(40, seed=3, scale=2.0, offset=-1.0)
     pts[:5] = ph.positions[:5]  # exactly at photons: distance 0 < tiny r
     for r in (1e-9, 1e6):
-        np.testing.assert_allclose(estimate_radius(ph, pts, nrm, r), brute(ph, pts, nrm, r),
-                                   rtol=1e-12, atol=0)
+        np.testing.assert_allclose(
+            estimate_radius(ph, pts, nrm, r), brute(ph, pts, nrm, r), rtol=1e-12, atol=0
+        )
         for k in (1, 7, 1000):
-            np.testing.assert_allclose(estimate_knn(ph, pts, nrm, r, k),
-                                       brute(ph, pts, nrm, r, k), rtol=1e-12, atol=0)
+            np.testing.assert_allclose(
+                estimate_knn(ph, pts, nrm, r, k), brute(ph, pts, nrm, r, k), rtol=1e-12, atol=0
+            )
     tiny = estimate_radius(ph, pts, nrm, 1e-9)
     assert not tiny[5:].any()
     # huge r: every facing photon counts, over the huge disc
@@ -120,10 +131,12 @@ def test_large_coordinates() -> None:
     ph = make_photons(1000, seed=12, scale=50.0, offset=-1e6)
     pts, nrm = queries(100, seed=13, scale=50.0, offset=-1e6)
     for r in (1.0, 10.0):
-        np.testing.assert_allclose(estimate_radius(ph, pts, nrm, r), brute(ph, pts, nrm, r),
-                                   rtol=1e-12, atol=0)
-        np.testing.assert_allclose(estimate_knn(ph, pts, nrm, r, 5), brute(ph, pts, nrm, r, 5),
-                                   rtol=1e-12, atol=0)
+        np.testing.assert_allclose(
+            estimate_radius(ph, pts, nrm, r), brute(ph, pts, nrm, r), rtol=1e-12, atol=0
+        )
+        np.testing.assert_allclose(
+            estimate_knn(ph, pts, nrm, r, 5), brute(ph, pts, nrm, r, 5), rtol=1e-12, atol=0
+        )
 
 
 def test_strict_radius_and_facing_tests() -> None:
@@ -144,12 +157,15 @@ def test_strict_radius_and_facing_tests() -> None:
     assert not estimate_radius(ph, np.zeros((1, 3)), np.zeros((1, 3)), r).any()
     # k nearest: photons at 0 (blue), 0.25 (white): r_k = 0.25
     e2 = estimate_knn(ph, np.zeros((1, 3)), up, r, 2)[0]
-    np.testing.assert_allclose(e2, np.array([1.0, 1.0, 2.0]) / (math.pi * 0.25 ** 2))
+    np.testing.assert_allclose(e2, np.array([1.0, 1.0, 2.0]) / (math.pi * 0.25**2))
 
 
 def test_knn_all_at_the_point_falls_back_to_radius() -> None:
-    ph = PhotonMap(np.zeros((3, 3), np.float32), np.ones((3, 3), np.float32),
-                   encode_directions(np.array([[0.0, 0.0, -1.0]] * 3)))
+    ph = PhotonMap(
+        np.zeros((3, 3), np.float32),
+        np.ones((3, 3), np.float32),
+        encode_directions(np.array([[0.0, 0.0, -1.0]] * 3)),
+    )
     up = np.array([[0.0, 0.0, 1.0]])
     e = estimate_knn(ph, np.zeros((1, 3)), up, 0.1, 2)
     np.testing.assert_allclose(e, estimate_radius(ph, np.zeros((1, 3)), up, 0.1))
@@ -176,8 +192,10 @@ def test_edge_cases() -> None:
     bad_p[1] = np.nan
     bad_p[2, 0] = np.inf
     bad_n[3, 2] = np.nan
-    for fn in (lambda p, n: estimate_radius(ph, p, n, 0.5),
-               lambda p, n: estimate_knn(ph, p, n, 0.5, 5)):
+    for fn in (
+        lambda p, n: estimate_radius(ph, p, n, 0.5),
+        lambda p, n: estimate_knn(ph, p, n, 0.5, 5),
+    ):
         got = fn(bad_p, bad_n)
         assert not got[1:4].any()
         np.testing.assert_allclose(got[[0, 4, 5]], fn(pts, nrm)[[0, 4, 5]])

@@ -40,12 +40,23 @@ def box_room(depth: float = 3.0) -> Scene:
             idx = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
             if np.dot(np.cross(corners[1] - corners[0], corners[2] - corners[0]), n) < 0:
                 idx = idx[:, ::-1].copy()
-            meshes.append(Mesh(f"wall{axis}{side}", np.array(corners, np.float32),
-                               np.tile(n, (4, 1)).astype(np.float32),
-                               np.zeros((4, 2), np.float32), idx, 0))
-    return Scene("box", meshes, [Material("grey", (0.6, 0.6, 0.6, 1.0), roughness=1.0)],
-                 lights=[PointLight((0.0, 2.6, -1.0), (1, 1, 1), 20.0, 12.0)],
-                 spawn=Viewpoint((0.0, 1.5, 0.0))).sanitized()
+            meshes.append(
+                Mesh(
+                    f"wall{axis}{side}",
+                    np.array(corners, np.float32),
+                    np.tile(n, (4, 1)).astype(np.float32),
+                    np.zeros((4, 2), np.float32),
+                    idx,
+                    0,
+                )
+            )
+    return Scene(
+        "box",
+        meshes,
+        [Material("grey", (0.6, 0.6, 0.6, 1.0), roughness=1.0)],
+        lights=[PointLight((0.0, 2.6, -1.0), (1, 1, 1), 20.0, 12.0)],
+        spawn=Viewpoint((0.0, 1.5, 0.0)),
+    ).sanitized()
 
 
 def photon_settings(**values) -> Settings:
@@ -73,8 +84,10 @@ def gbuffer_points(host: OffscreenHost, eye: int, fi: FrameInput):
         depth = np.frombuffer(tgt.depth.read(), np.float32).reshape(h, w)
         normal = np.frombuffer(tgt.normal.read(), np.float16).reshape(h, w, 4)
     ys, xs = np.mgrid[0:h, 0:w]
-    ndc = np.stack([(xs + 0.5) / w * 2 - 1, (ys + 0.5) / h * 2 - 1, depth * 2.0 - 1, np.ones_like(
-        depth)], axis=-1).astype(np.float64)
+    ndc = np.stack(
+        [(xs + 0.5) / w * 2 - 1, (ys + 0.5) / h * 2 - 1, depth * 2.0 - 1, np.ones_like(depth)],
+        axis=-1,
+    ).astype(np.float64)
     world = ndc @ fi.eyes[eye].inverse_view_projection.T
     points = world[..., :3] / world[..., 3:]
     n = normal[..., :3].astype(np.float64)
@@ -113,8 +126,12 @@ def test_map_is_traced_again_only_when_what_it_depends_on_changes(monkeypatch):
     s = photon_settings()
     with OffscreenHost(W, H, s) as host:
         host.set_scene(box_room())
-        for key, value in (("photons.radius_m", 0.3), ("photons.gather", "radius-half"),
-                           ("photons.stereo_reuse", False), ("render.brightness", 0.5)):
+        for key, value in (
+            ("photons.radius_m", 0.3),
+            ("photons.gather", "radius-half"),
+            ("photons.stereo_reuse", False),
+            ("render.brightness", 0.5),
+        ):
             s.set(key, value)
             host.draw(eye_frame(host))
         assert calls == [1 << 14]  # radius, variant, reuse and the dimmer: no new tracing
@@ -137,8 +154,12 @@ def test_indirect_target_equals_the_cpu_reference(gather):
             gpu = np.flipud(host.renderer.photons.read_indirect(0))  # GL row order
         points, normals, lit = gbuffer_points(host, 0, fi)
         sel = np.flatnonzero(lit.ravel())[::37]
-        ref = estimate_radius(host.photon_cache.map, points.reshape(-1, 3)[sel],
-                              normals.reshape(-1, 3)[sel], s.photons.radius_m)
+        ref = estimate_radius(
+            host.photon_cache.map,
+            points.reshape(-1, 3)[sel],
+            normals.reshape(-1, 3)[sel],
+            s.photons.radius_m,
+        )
         got = gpu.reshape(-1, 4)[sel, :3]
         assert ref.max() > 0
         # The G-buffer depth is 24-bit: the CPU reconstructs the same points to ~1e-6 m, so
@@ -202,8 +223,10 @@ def test_reuse_covers_most_of_the_right_eye_and_matches_gathering():
         with host.ctx:
             gathered = host.renderer.photons.read_indirect(1)
         both = (reused[..., 3] > 0) & (gathered[..., 3] > 0)
-        rel = np.abs(reused[..., :3] - gathered[..., :3])[both].mean() / gathered[..., :3][
-            both].mean()
+        rel = (
+            np.abs(reused[..., :3] - gathered[..., :3])[both].mean()
+            / gathered[..., :3][both].mean()
+        )
         assert rel < 0.1  # a neighbour's value at most a pixel away: close, not equal
 
 

@@ -30,8 +30,14 @@ def _quad(name: str, corners: np.ndarray, normal: np.ndarray, material: int) -> 
     c = np.asarray(corners, np.float32)
     if np.cross(c[1] - c[0], c[2] - c[0]) @ normal < 0:
         idx = idx[:, ::-1].copy()
-    return Mesh(name, c, np.tile(np.asarray(normal, np.float32), (4, 1)),
-                np.zeros((4, 2), np.float32), idx, material)
+    return Mesh(
+        name,
+        c,
+        np.tile(np.asarray(normal, np.float32), (4, 1)),
+        np.zeros((4, 2), np.float32),
+        idx,
+        material,
+    )
 
 
 def _box_walls(material: int = 0) -> list[Mesh]:
@@ -50,8 +56,12 @@ def _box_walls(material: int = 0) -> list[Mesh]:
     return meshes
 
 
-def _box(albedo: float, lights: list[PointLight], extra: list[Mesh] | None = None,
-         materials: list[Material] | None = None) -> Scene:
+def _box(
+    albedo: float,
+    lights: list[PointLight],
+    extra: list[Mesh] | None = None,
+    materials: list[Material] | None = None,
+) -> Scene:
     mats = [Material("wall", (albedo, albedo, albedo, 1.0))] + (materials or [])
     return Scene("box", _box_walls() + (extra or []), mats, lights=lights)
 
@@ -66,8 +76,8 @@ def _first_hit_flux(light: PointLight, n: int = 400_000) -> np.ndarray:
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     dist = np.min(HALF / np.abs(d), axis=1)  # exit distance from the centre through the slabs
-    d2 = dist ** 2
-    x = d2 / light.range_m ** 2
+    d2 = dist**2
+    x = d2 / light.range_m**2
     factor = np.clip(1 - x * x, 0, 1) ** 2 * d2 / (d2 + 1)
     return 4 * np.pi * light.intensity * np.asarray(light.color) * factor.mean()
 
@@ -101,9 +111,9 @@ def test_black_box_point_light_stores_nothing() -> None:
 def test_grey_box_energy_and_placement() -> None:
     light = _centre_light()
     bounces = 8
-    pm = trace_photons(_box(0.5, [light]), 2 ** 15, seed=3, max_bounces=bounces)
+    pm = trace_photons(_box(0.5, [light]), 2**15, seed=3, max_bounces=bounces)
     # rho = 0.5: roulette keeps half the paths at unchanged flux, so bounce k stores F1 0.5^k.
-    expected = _first_hit_flux(light) * sum(0.5 ** k for k in range(1, bounces + 1))
+    expected = _first_hit_flux(light) * sum(0.5**k for k in range(1, bounces + 1))
     np.testing.assert_allclose(pm.power.sum(axis=0, dtype=np.float64), expected, rtol=0.04)
     # Every photon lies on a wall, and travelled into it.
     gap = np.min(HALF - np.abs(pm.positions), axis=1)
@@ -118,7 +128,7 @@ def test_range_window_limits_first_hits() -> None:
     # A light whose range ends inside the box lights only walls within that range; no hit
     # beyond it seeds a photon, and the flux shrinks by the renderer's window.
     light = PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, 2.2)
-    pm = trace_photons(_box(0.5, [light]), 2 ** 14, seed=1, max_bounces=1)
+    pm = trace_photons(_box(0.5, [light]), 2**14, seed=1, max_bounces=1)
     expected = _first_hit_flux(light) * 0.5
     np.testing.assert_allclose(pm.power.sum(axis=0, dtype=np.float64), expected, rtol=0.05)
 
@@ -131,7 +141,7 @@ def test_emissive_panel_in_black_box() -> None:
     le = np.array([2.0, 1.5, 1.0])
     panel = _quad("panel", corners, np.array([0.0, -1.0, 0.0]), 1)
     scene = _box(0.0, [], [panel], [Material("panel", (0, 0, 0, 1), emissive=tuple(le))])
-    n = 2 ** 14
+    n = 2**14
     pm = trace_photons(scene, n, seed=2)
     assert len(pm) >= n * 0.999  # all but a rare leak through an edge
     np.testing.assert_allclose(pm.power.sum(axis=0, dtype=np.float64), np.pi * le * 0.5, rtol=2e-3)
@@ -161,7 +171,7 @@ def test_photons_shared_by_power() -> None:
     # Two lights at the centre: each carries its own power whatever its share of photons.
     bright = PointLight((0.0, 0.0, 0.0), (1.0, 0.5, 0.2), 30.0, 1e4)
     dim = PointLight((0.0, 0.0, 0.0), (0.2, 0.5, 1.0), 10.0, 1e4)
-    pm = trace_photons(_box(0.5, [bright, dim]), 2 ** 14, seed=5, max_bounces=1)
+    pm = trace_photons(_box(0.5, [bright, dim]), 2**14, seed=5, max_bounces=1)
     expected = 0.5 * (_first_hit_flux(bright) + _first_hit_flux(dim))
     np.testing.assert_allclose(pm.power.sum(axis=0, dtype=np.float64), expected, rtol=0.04)
 
@@ -184,14 +194,15 @@ def test_bad_input_is_tolerated() -> None:
     walls[0].positions = walls[0].positions.copy()
     walls[0].positions[0] = np.nan  # one wall loses a triangle
     walls[1].positions = np.zeros((4, 3), np.float32)  # zero-area triangles
-    lights = [_centre_light(),
-              PointLight((np.nan, 0.0, 0.0)),
-              PointLight((0.0, 0.0, 0.0), (np.nan, 1.0, 1.0)),
-              PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), np.inf),
-              PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, np.inf),
-              PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, np.nan)]
-    mats = [Material("wall", (0.5, np.nan, 0.5, 1.0), metallic=np.nan,
-                     emissive=(np.nan, 0.0, 0.0))]
+    lights = [
+        _centre_light(),
+        PointLight((np.nan, 0.0, 0.0)),
+        PointLight((0.0, 0.0, 0.0), (np.nan, 1.0, 1.0)),
+        PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), np.inf),
+        PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, np.inf),
+        PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, np.nan),
+    ]
+    mats = [Material("wall", (0.5, np.nan, 0.5, 1.0), metallic=np.nan, emissive=(np.nan, 0.0, 0.0))]
     scene = Scene("bad", walls, mats, lights=lights)
     pm = trace_photons(scene, 4096, seed=1)
     assert len(pm) > 0
@@ -215,8 +226,10 @@ def test_reflectance_uses_texture_and_vertex_colours() -> None:
     walls = _box_walls()
     walls[1].material = 1
     walls[2].colors = np.tile(np.float32([0.5, 1.0, 1.0]), (4, 1))
-    mats = [Material("plain", (0.8, 0.6, 0.4, 1.0), metallic=0.25),
-            Material("textured", (1.0, 1.0, 1.0, 1.0), texture=0)]
+    mats = [
+        Material("plain", (0.8, 0.6, 0.4, 1.0), metallic=0.25),
+        Material("textured", (1.0, 1.0, 1.0, 1.0), texture=0),
+    ]
     rho, emit = _mesh_optics(Scene("t", walls, mats, [tex]), [])
     np.testing.assert_allclose(rho[0], [0.6, 0.45, 0.3])
     np.testing.assert_allclose(rho[1], 0.5, atol=3e-3)
@@ -241,12 +254,18 @@ def test_progress_cancel_and_given_caster() -> None:
 
 
 def test_cast_triangles_maps_back_past_dropped_triangles() -> None:
-    tris = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]],
-                     [[np.nan, 0, 0], [1, 0, 0], [0, 1, 0]],
-                     [[0, 0, 2], [1, 0, 2], [0, 1, 2]]], float)
+    tris = np.array(
+        [
+            [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+            [[np.nan, 0, 0], [1, 0, 0], [0, 1, 0]],
+            [[0, 0, 2], [1, 0, 2], [0, 1, 2]],
+        ],
+        float,
+    )
     caster = RayCaster(tris)
-    dist, tri = caster.cast_triangles([[0.2, 0.2, 1.0], [0.2, 0.2, 1.0], [5, 5, 1]],
-                                      [[0, 0, 1], [0, 0, -1], [0, 0, 1]])
+    dist, tri = caster.cast_triangles(
+        [[0.2, 0.2, 1.0], [0.2, 0.2, 1.0], [5, 5, 1]], [[0, 0, 1], [0, 0, -1], [0, 0, 1]]
+    )
     np.testing.assert_allclose(dist[:2], [1.0, 1.0], atol=1e-5)
     assert dist[2] == np.inf and tri[2] == -1
     assert list(caster.source_index[tri[:2]]) == [2, 0]
@@ -254,8 +273,8 @@ def test_cast_triangles_maps_back_past_dropped_triangles() -> None:
 
 def test_showroom_traces_inside_its_bounds() -> None:
     room = scenes.resolve("showroom")
-    pm = trace_photons(room, 2 ** 14, seed=0)
-    assert len(pm) > 2 ** 13
+    pm = trace_photons(room, 2**14, seed=0)
+    assert len(pm) > 2**13
     assert np.isfinite(pm.positions).all() and np.isfinite(pm.power).all()
     lo, hi = room.bounds()
     pad = 1e-3 * scene_scale(room)

@@ -18,24 +18,40 @@ W, H = 320, 180  # whole side-by-side view for these tests: two 160x180 eyes
 
 def quad(name, center, half, material=0, uv_scale=1.0):
     cx, cy, cz = center
-    pos = np.array([[cx - half, cy - half, cz], [cx + half, cy - half, cz],
-                    [cx + half, cy + half, cz], [cx - half, cy + half, cz]], np.float32)
+    pos = np.array(
+        [
+            [cx - half, cy - half, cz],
+            [cx + half, cy - half, cz],
+            [cx + half, cy + half, cz],
+            [cx - half, cy + half, cz],
+        ],
+        np.float32,
+    )
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32) * uv_scale
-    return Mesh(name, pos, np.tile([0, 0, 1], (4, 1)).astype(np.float32), uv,
-                np.array([[0, 1, 2], [0, 2, 3]], np.uint32), material)
+    return Mesh(
+        name,
+        pos,
+        np.tile([0, 0, 1], (4, 1)).astype(np.float32),
+        uv,
+        np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+        material,
+    )
 
 
 def checker_scene() -> Scene:
     tex = np.zeros((4, 4, 4), np.uint8)
-    tex[:2, :2] = (255, 0, 0, 255)   # top-left red
-    tex[:2, 2:] = (0, 255, 0, 255)   # top-right green
-    tex[2:, :2] = (0, 0, 255, 255)   # bottom-left blue
+    tex[:2, :2] = (255, 0, 0, 255)  # top-left red
+    tex[:2, 2:] = (0, 255, 0, 255)  # top-right green
+    tex[2:, :2] = (0, 0, 255, 255)  # bottom-left blue
     tex[2:, 2:] = (255, 255, 255, 255)
-    return Scene("checker", [quad("q", (0, 1.6, -2), 1.0)],
-                 [Material("m", (1, 1, 1, 1), 0, roughness=1.0)],
-                 [Texture("checker", tex, repeat=False)],
-                 [PointLight((0, 1.6, 0), (1, 1, 1), 30.0, 20.0)],
-                 Viewpoint((0, 1.6, 0))).sanitized()
+    return Scene(
+        "checker",
+        [quad("q", (0, 1.6, -2), 1.0)],
+        [Material("m", (1, 1, 1, 1), 0, roughness=1.0)],
+        [Texture("checker", tex, repeat=False)],
+        [PointLight((0, 1.6, 0), (1, 1, 1), 30.0, 20.0)],
+        Viewpoint((0, 1.6, 0)),
+    ).sanitized()
 
 
 @pytest.fixture(scope="module")
@@ -94,9 +110,13 @@ def test_deferred_and_forward_agree_and_compute_equals_fragment(host):
 @pytest.mark.parametrize("depth", [1.0, 4.0])
 def test_left_and_right_differ_by_the_expected_disparity(host, depth):
     # A small bright square on the centre line at a known depth, nothing else in view.
-    scene = Scene("dot", [quad("dot", (0, 1.6, -depth), 0.02 * depth)],
-                  [Material("m", (1, 1, 1, 1), roughness=1.0)], [],
-                  [PointLight((0, 1.6, 0), (1, 1, 1), 40.0 * depth * depth, 100.0)]).sanitized()
+    scene = Scene(
+        "dot",
+        [quad("dot", (0, 1.6, -depth), 0.02 * depth)],
+        [Material("m", (1, 1, 1, 1), roughness=1.0)],
+        [],
+        [PointLight((0, 1.6, 0), (1, 1, 1), 40.0 * depth * depth, 100.0)],
+    ).sanitized()
     img = draw(host, scene).astype(float).sum(axis=2)
     half = W // 2
 
@@ -128,12 +148,13 @@ def test_bad_geometry_and_lights_never_reach_the_screen_as_nan(host):
     bad = quad("bad", (0, 1.6, -1.5), 0.3)
     bad.positions[1] = (math.nan, math.inf, 0.0)
     bad.normals[:] = 0.0
-    lights = [PointLight((0, 1.6, 0), (1, 1, 1), 20.0, 10.0),
-              PointLight((math.nan, 0, 0), (1, 1, 1), 20.0, 10.0),
-              PointLight((0, 2, -1), (1, 1, 1), math.inf, 5.0),
-              PointLight((0, 2, -1), (1, 1, 1), 5.0, 0.0)]
-    scene = Scene("bad", [good, bad], [Material("m", (math.nan, 1, 1, 1))], [],
-                  lights).sanitized()
+    lights = [
+        PointLight((0, 1.6, 0), (1, 1, 1), 20.0, 10.0),
+        PointLight((math.nan, 0, 0), (1, 1, 1), 20.0, 10.0),
+        PointLight((0, 2, -1), (1, 1, 1), math.inf, 5.0),
+        PointLight((0, 2, -1), (1, 1, 1), 5.0, 0.0),
+    ]
+    scene = Scene("bad", [good, bad], [Material("m", (math.nan, 1, 1, 1))], [], lights).sanitized()
     assert any("dropped" in w for w in scene.warnings)
     for path in ("deferred", "forward"):
         img = draw(host, scene, render__path=path)
@@ -143,8 +164,13 @@ def test_bad_geometry_and_lights_never_reach_the_screen_as_nan(host):
 
 
 def test_emissive_surfaces_glow_without_lights_in_both_paths(host):
-    scene = Scene("glow", [quad("lamp", (0, 1.6, -2), 0.5)],
-                  [Material("m", (0.1, 0.1, 0.1, 1), emissive=(0.0, 0.0, 2.0))], [], []).sanitized()
+    scene = Scene(
+        "glow",
+        [quad("lamp", (0, 1.6, -2), 0.5)],
+        [Material("m", (0.1, 0.1, 0.1, 1), emissive=(0.0, 0.0, 2.0))],
+        [],
+        [],
+    ).sanitized()
     for path in ("deferred", "forward"):
         left = draw(host, scene, render__path=path)[:, : W // 2].astype(int)
         centre = left[H // 2, W // 4]
@@ -190,7 +216,19 @@ def test_sibenik_renders_headless(scenes_dir, tmp_path):
     from app.cli import main
 
     out = tmp_path / "sibenik.png"
-    assert main(["render", "--scene", str(scenes_dir / "sibenik" / "sibenik.obj"),
-                 "--out", str(out), "--size", "320x180"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                "--scene",
+                str(scenes_dir / "sibenik" / "sibenik.obj"),
+                "--out",
+                str(out),
+                "--size",
+                "320x180",
+            ]
+        )
+        == 0
+    )
     img = np.asarray(Image.open(out)).astype(float)
     assert img.std() > 20 and 30 < img.mean() < 220

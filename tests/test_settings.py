@@ -17,16 +17,19 @@ def test_dotted_keys_get_and_set_with_types():
     assert "stereo.ipd_mm" in s.keys() and "render.lighting" in s.keys()
 
 
-@pytest.mark.parametrize("assignment, message", [
-    ("stereo.nope=1", "unknown setting"),
-    ("stereo=1", "section"),
-    ("stereo.ipd_mm=abc", "cannot use"),
-    ("stereo.ipd_mm=nan", "cannot use"),
-    ("stereo.ipd_mm=1e9", "outside"),
-    ("render.path=raytrace", "not one of"),
-    ("render.overlay=maybe", "cannot use"),
-    ("stereo.ipd_mm", "expected key=value"),
-])
+@pytest.mark.parametrize(
+    "assignment, message",
+    [
+        ("stereo.nope=1", "unknown setting"),
+        ("stereo=1", "section"),
+        ("stereo.ipd_mm=abc", "cannot use"),
+        ("stereo.ipd_mm=nan", "cannot use"),
+        ("stereo.ipd_mm=1e9", "outside"),
+        ("render.path=raytrace", "not one of"),
+        ("render.overlay=maybe", "cannot use"),
+        ("stereo.ipd_mm", "expected key=value"),
+    ],
+)
 def test_bad_assignments_are_clear_errors(assignment, message):
     s = Settings()
     with pytest.raises(SettingsError, match=message):

@@ -15,8 +15,11 @@ def fake_reader(files):
 
 
 def test_includes_once_defines_after_version_and_line_map():
-    files = {"top.glsl": '#version 430\n#include "a.glsl"\n#include "b.glsl"\nvoid main() {}\n',
-             "a.glsl": '#include "b.glsl"\nfloat a;\n', "b.glsl": "float b;\n"}
+    files = {
+        "top.glsl": '#version 430\n#include "a.glsl"\n#include "b.glsl"\nvoid main() {}\n',
+        "a.glsl": '#include "b.glsl"\nfloat a;\n',
+        "b.glsl": "float b;\n",
+    }
     src = assemble("top.glsl", {"FOO": 3, "BAR": True, "OFF": False}, fake_reader(files))
     lines = src.text.splitlines()
     assert lines[0] == "#version 430"
@@ -26,13 +29,18 @@ def test_includes_once_defines_after_version_and_line_map():
     assert src.where(lines.index("void main() {}") + 1) == "top.glsl:4"
 
 
-@pytest.mark.parametrize("files, message", [
-    ({"top.glsl": "void main() {}\n"}, "top.glsl:1: the first line must be"),
-    ({"top.glsl": "#version 330\nvoid main() {}\n"}, "older than 430"),
-    ({"top.glsl": '#version 430\n#include "gone.glsl"\n'}, "top.glsl:2: cannot include"),
-    ({"top.glsl": '#version 430\n#include "a.glsl"\n', "a.glsl": '#include "top.glsl"\n'},
-     "cycle"),
-])
+@pytest.mark.parametrize(
+    "files, message",
+    [
+        ({"top.glsl": "void main() {}\n"}, "top.glsl:1: the first line must be"),
+        ({"top.glsl": "#version 330\nvoid main() {}\n"}, "older than 430"),
+        ({"top.glsl": '#version 430\n#include "gone.glsl"\n'}, "top.glsl:2: cannot include"),
+        (
+            {"top.glsl": '#version 430\n#include "a.glsl"\n', "a.glsl": '#include "top.glsl"\n'},
+            "cycle",
+        ),
+    ],
+)
 def test_loader_errors_name_file_and_line(files, message):
     with pytest.raises(ShaderError, match=message):
         assemble("top.glsl", None, fake_reader(files))
@@ -41,10 +49,12 @@ def test_loader_errors_name_file_and_line(files, message):
 def test_compile_error_names_the_included_file_and_line(monkeypatch):
     from render.context import create_headless
 
-    files = {"v.glsl": "#version 430\nvoid main() { gl_Position = vec4(0.0); }\n",
-             "f.glsl": '#version 430\n#include "lib.glsl"\nout vec4 c;\n'
-                       "void main() { c = vec4(helper()); }\n",
-             "lib.glsl": "// a helper\nfloat helper() { return missing_value; }\n"}
+    files = {
+        "v.glsl": "#version 430\nvoid main() { gl_Position = vec4(0.0); }\n",
+        "f.glsl": '#version 430\n#include "lib.glsl"\nout vec4 c;\n'
+        "void main() { c = vec4(helper()); }\n",
+        "lib.glsl": "// a helper\nfloat helper() { return missing_value; }\n",
+    }
     monkeypatch.setattr(shaders, "read_file", fake_reader(files))
     ctx = create_headless()
     with ctx:

@@ -93,9 +93,24 @@ def test_scene_identity_and_required_objects(room: Scene) -> None:
     assert room.warnings == []
     names = [m.name for m in room.meshes]
     assert len(names) == len(set(names)), "mesh names must be unique"
-    required = {"floor", "ceiling", "wall_north", "wall_south", "wall_east", "wall_west",
-                "piano", "chair", "sofa", "blinds", "light_switch", "rug", "coffee_table",
-                "floor_lamp", "door", "window"} | {f"painting_{k}" for k in range(1, 6)}
+    required = {
+        "floor",
+        "ceiling",
+        "wall_north",
+        "wall_south",
+        "wall_east",
+        "wall_west",
+        "piano",
+        "chair",
+        "sofa",
+        "blinds",
+        "light_switch",
+        "rug",
+        "coffee_table",
+        "floor_lamp",
+        "door",
+        "window",
+    } | {f"painting_{k}" for k in range(1, 6)}
     assert required <= set(names), required - set(names)
     assert room.triangle_count > 2000
     assert mesh(room, "blinds").triangle_count >= 20 * 12, "blinds need many slats"
@@ -159,13 +174,20 @@ def test_normals_are_unit_and_match_the_winding(room: Scene) -> None:
         tri = m.positions[m.indices].astype(np.float64)
         geometric = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         vertex = m.normals[m.indices].sum(axis=1)
-        assert np.all(np.einsum("ij,ij->i", geometric, vertex) > 0), \
+        assert np.all(np.einsum("ij,ij->i", geometric, vertex) > 0), (
             f"{m.name}: triangles not counter-clockwise seen from their normal side"
+        )
 
 
 def test_shell_faces_into_the_room(room: Scene) -> None:
-    expected = {"floor": (0, 1, 0), "ceiling": (0, -1, 0), "wall_north": (0, 0, 1),
-                "wall_south": (0, 0, -1), "wall_east": (-1, 0, 0), "wall_west": (1, 0, 0)}
+    expected = {
+        "floor": (0, 1, 0),
+        "ceiling": (0, -1, 0),
+        "wall_north": (0, 0, 1),
+        "wall_south": (0, 0, -1),
+        "wall_east": (-1, 0, 0),
+        "wall_west": (1, 0, 0),
+    }
     for name, normal in expected.items():
         m = mesh(room, name)
         assert np.allclose(m.normals, normal, atol=1e-6), name
@@ -244,8 +266,13 @@ def _lerp_key(a: dict[str, Any], b: dict[str, Any], f: float) -> dict[str, Any]:
     return out
 
 
-def _clear_around(caster: RayCaster, xz: np.ndarray, heights: tuple[float, ...],
-                  radius: float = CLEARANCE_M, directions: int = 24) -> bool:
+def _clear_around(
+    caster: RayCaster,
+    xz: np.ndarray,
+    heights: tuple[float, ...],
+    radius: float = CLEARANCE_M,
+    directions: int = 24,
+) -> bool:
     """True when nothing lies within ``radius`` horizontally of any point, at every height."""
     ang = np.linspace(0.0, 2 * np.pi, directions, endpoint=False)
     dirs = np.stack([np.cos(ang), np.zeros_like(ang), np.sin(ang)], axis=1)
@@ -259,9 +286,11 @@ def _clear_around(caster: RayCaster, xz: np.ndarray, heights: tuple[float, ...],
 
 
 def _segment_state(a: dict[str, Any], b: dict[str, Any]) -> tuple[str, str] | None:
-    moved = (not np.allclose(a["position"], b["position"], atol=1e-6)
-             or abs(a["yaw_deg"] - b["yaw_deg"]) > 1e-6
-             or abs(a["pitch_deg"] - b["pitch_deg"]) > 1e-6)
+    moved = (
+        not np.allclose(a["position"], b["position"], atol=1e-6)
+        or abs(a["yaw_deg"] - b["yaw_deg"]) > 1e-6
+        or abs(a["pitch_deg"] - b["pitch_deg"]) > 1e-6
+    )
     view = "moving" if moved else "still"
     if a["gaze_fixed"]:
         return view, "fixed"
@@ -277,8 +306,10 @@ def test_path_format(room: Scene, path_keys: list[dict[str, Any]]) -> None:
         assert set(key) == fields
         assert len(key["position"]) == 3 and len(key["gaze"]) == 2
         assert isinstance(key["gaze_fixed"], bool)
-        assert all(math.isfinite(v) for v in [*key["position"], key["yaw_deg"],
-                                              key["pitch_deg"], *key["gaze"]])
+        assert all(
+            math.isfinite(v)
+            for v in [*key["position"], key["yaw_deg"], key["pitch_deg"], *key["gaze"]]
+        )
         assert key["position"][1] == pytest.approx(1.6)
         assert all(0.0 <= g <= 1.0 for g in key["gaze"])
         assert -89.0 < key["pitch_deg"] < 89.0
@@ -299,13 +330,18 @@ def test_path_covers_the_four_states(path_keys: list[dict[str, Any]]) -> None:
         state = _segment_state(a, b)
         if state is not None:
             spent[state] = spent.get(state, 0.0) + b["t"] - a["t"]
-    for state in (("still", "gaze moving"), ("moving", "gaze moving"), ("still", "fixed"),
-                  ("moving", "fixed")):
+    for state in (
+        ("still", "gaze moving"),
+        ("moving", "gaze moving"),
+        ("still", "fixed"),
+        ("moving", "fixed"),
+    ):
         assert spent.get(state, 0.0) >= 0.5, (state, spent)
 
 
-def test_fixed_gaze_rests_on_a_painting(room: Scene, caster: RayCaster,
-                                        path_keys: list[dict[str, Any]]) -> None:
+def test_fixed_gaze_rests_on_a_painting(
+    room: Scene, caster: RayCaster, path_keys: list[dict[str, Any]]
+) -> None:
     names = [m.name for m in room.meshes]
     seen: set[str] = set()
     for a, b in zip(path_keys, path_keys[1:], strict=False):
@@ -319,8 +355,9 @@ def test_fixed_gaze_rests_on_a_painting(room: Scene, caster: RayCaster,
     assert len(seen) >= 1
 
 
-def test_path_stays_clear_of_furniture_and_walls(room: Scene, caster: RayCaster,
-                                                 path_keys: list[dict[str, Any]]) -> None:
+def test_path_stays_clear_of_furniture_and_walls(
+    room: Scene, caster: RayCaster, path_keys: list[dict[str, Any]]
+) -> None:
     floor = room.floor_y or 0.0
     heights = tuple(floor + h for h in PATH_HEIGHTS)
     for a, b in zip(path_keys, path_keys[1:], strict=False):
@@ -382,8 +419,12 @@ def test_texture_test_scene_quadrants() -> None:
     img = tex.rgba
     h, w = img.shape[:2]
     # Seen from the spawn looking down -Z, screen right is +x and screen up is +y.
-    expected = {(-1, 1): (255, 0, 0), (1, 1): (0, 255, 0), (-1, -1): (0, 0, 255),
-                (1, -1): (255, 255, 255)}
+    expected = {
+        (-1, 1): (255, 0, 0),
+        (1, 1): (0, 255, 0),
+        (-1, -1): (0, 0, 255),
+        (1, -1): (255, 255, 255),
+    }
     for (sx, sy), colour in expected.items():
         for off in (0.25, 0.5, 0.75):
             point = np.array([sx * off, 1.6 + sy * off, -2.0])

@@ -14,11 +14,18 @@ from app.study import FULL, Matrix, pareto, run_study
 
 
 def tiny() -> Matrix:
-    return Matrix("showroom", "showroom_walkthrough",
-                  [(FULL, ("cps.mode=none",)),
-                   ("cps-block16", ("cps.mode=cps", "cps.max_level=4")),
-                   ("black-mask", ("cps.mode=black-mask",))],
-                  frames=2, stride=150, compare_every=1)
+    return Matrix(
+        "showroom",
+        "showroom_walkthrough",
+        [
+            (FULL, ("cps.mode=none",)),
+            ("cps-block16", ("cps.mode=cps", "cps.max_level=4")),
+            ("black-mask", ("cps.mode=black-mask",)),
+        ],
+        frames=2,
+        stride=150,
+        compare_every=1,
+    )
 
 
 def test_study_writes_results_table_plot_and_resumes(tmp_path, monkeypatch):
@@ -48,11 +55,14 @@ def test_study_writes_results_table_plot_and_resumes(tmp_path, monkeypatch):
     assert len(ran) == 2 and [r["name"] for r in rows] == [FULL, "cps-block16", "black-mask"]
 
 
-@pytest.mark.parametrize(("points", "front"), [
-    ([("a", 10, 0.1), ("b", 5, 0.2), ("c", 6, 0.3), ("d", 20, 0.0)], ["b", "a", "d"]),
-    ([("a", 1, 0.5), ("b", 1, 0.5)], ["a", "b"]),  # equal points dominate neither
-    ([("a", 1, float("nan")), ("b", 2, 0.1)], ["b"]),  # no error figure: not plotted
-])
+@pytest.mark.parametrize(
+    ("points", "front"),
+    [
+        ([("a", 10, 0.1), ("b", 5, 0.2), ("c", 6, 0.3), ("d", 20, 0.0)], ["b", "a", "d"]),
+        ([("a", 1, 0.5), ("b", 1, 0.5)], ["a", "b"]),  # equal points dominate neither
+        ([("a", 1, float("nan")), ("b", 2, 0.1)], ["b"]),  # no error figure: not plotted
+    ],
+)
 def test_pareto_front(points, front):
     rows = [{"name": n, "frame_ms": t, "flip": e} for n, t, e in points]
     assert pareto(rows) == front

@@ -38,25 +38,59 @@ L_ONLY = TcrTerms(d=False, v=False, g=False, l=True)
 ALL = TcrTerms()
 SWEEP = hsettings(derandomize=True, database=None, max_examples=400, deadline=None)
 TINY = 5e-324  # the smallest denormal
-EXTREMES = [math.nan, math.inf, -math.inf, 0.0, -0.0, TINY, -TINY, 2.2250738585072014e-308,
-            1e-300, 1e30, -1e30, sys.float_info.max, -sys.float_info.max, 1.0, -1.0]
+EXTREMES = [
+    math.nan,
+    math.inf,
+    -math.inf,
+    0.0,
+    -0.0,
+    TINY,
+    -TINY,
+    2.2250738585072014e-308,
+    1e-300,
+    1e30,
+    -1e30,
+    sys.float_info.max,
+    -sys.float_info.max,
+    1.0,
+    -1.0,
+]
 
 
-def _level(distance: float, f: float = 1.0, n: int = 20, *, moving: bool = False,
-           gazed_fixed: bool = False, brightness: float = 1.0,
-           terms: TcrTerms = D_ONLY) -> int:
-    return level_for(distance, f, n, moving=moving, gazed_fixed=gazed_fixed,
-                     brightness=brightness, terms=terms).level
+def _level(
+    distance: float,
+    f: float = 1.0,
+    n: int = 20,
+    *,
+    moving: bool = False,
+    gazed_fixed: bool = False,
+    brightness: float = 1.0,
+    terms: TcrTerms = D_ONLY,
+) -> int:
+    return level_for(
+        distance, f, n, moving=moving, gazed_fixed=gazed_fixed, brightness=brightness, terms=terms
+    ).level
 
 
 # -- the formula ------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("f", [1.0, 0.25, 0.1, 0.7, 3.0])
-@pytest.mark.parametrize(("times_f", "expected"), [
-    (0.5, 0), (1.0, 0), ("2f-", 0), (2.0, 1), (3.0, 1), ("4f-", 1), (4.0, 2), (8.0, 3),
-    (1000.0, 9), (1024.0, 10),
-])
+@pytest.mark.parametrize(
+    ("times_f", "expected"),
+    [
+        (0.5, 0),
+        (1.0, 0),
+        ("2f-", 0),
+        (2.0, 1),
+        (3.0, 1),
+        ("4f-", 1),
+        (4.0, 2),
+        (8.0, 3),
+        (1000.0, 9),
+        (1024.0, 10),
+    ],
+)
 def test_distance_table(f: float, times_f: float | str, expected: int) -> None:
     # j = floor(log2(distance / f)), exactly: a distance just short of 2f is still level 0.
     if isinstance(times_f, str):
@@ -79,8 +113,9 @@ def test_distance_clamped_to_n() -> None:
     assert (reason.raw, reason.level) == (-1, 0)
 
 
-@pytest.mark.parametrize("terms", [TcrTerms(*flags)
-                                   for flags in itertools.product([False, True], repeat=4)])
+@pytest.mark.parametrize(
+    "terms", [TcrTerms(*flags) for flags in itertools.product([False, True], repeat=4)]
+)
 def test_each_term_on_and_off(terms: TcrTerms) -> None:
     # distance 4f -> 2, moving -> +1, gazed and fixed -> -1, brightness 1/4 -> +2.
     r = level_for(4.0, 1.0, 20, moving=True, gazed_fixed=True, brightness=0.25, terms=terms)
@@ -126,31 +161,33 @@ def test_brightness_term() -> None:
     assert brightness_term(2.0, reference=8.0) == 2
 
 
-@pytest.mark.parametrize(("distance", "f", "brightness", "expected"), [
-    (math.nan, 1.0, 1.0, 0),  # broken geometry: show quality
-    (0.0, 1.0, 1.0, 0),
-    (-0.0, 1.0, 1.0, 0),
-    (-5.0, 1.0, 1.0, 0),
-    (-math.inf, 1.0, 1.0, 0),
-    (math.inf, 1.0, 1.0, 9),  # infinitely far: coarsest
-    (1e30, 1.0, 1.0, 9),
-    (TINY, 1.0, 1.0, 0),
-    (2.0, 0.0, 1.0, 9),  # f = 0, negative or NaN: f = 1e-6, so anything beyond is coarse
-    (2.0, -1.0, 1.0, 9),
-    (2.0, math.nan, 1.0, 9),
-    (1.5e-6, math.nan, 1.0, 0),
-    (2.0, TINY, 1.0, 9),
-    (1e300, math.inf, 1.0, 0),  # f = inf: every finite distance is level 0
-    (math.inf, math.inf, 1.0, 9),
-    (1.0, 1.0, 0.0, 9),  # no light at all: coarsest
-    (1.0, 1.0, -1.0, 9),
-    (1.0, 1.0, TINY, 9),
-    (1.0, 1.0, math.nan, 0),  # unknown light: quality
-    (1.0, 1.0, math.inf, 0),
-    (1.0, 1.0, -math.inf, 9),
-])
-def test_documented_fallbacks(distance: float, f: float, brightness: float,
-                              expected: int) -> None:
+@pytest.mark.parametrize(
+    ("distance", "f", "brightness", "expected"),
+    [
+        (math.nan, 1.0, 1.0, 0),  # broken geometry: show quality
+        (0.0, 1.0, 1.0, 0),
+        (-0.0, 1.0, 1.0, 0),
+        (-5.0, 1.0, 1.0, 0),
+        (-math.inf, 1.0, 1.0, 0),
+        (math.inf, 1.0, 1.0, 9),  # infinitely far: coarsest
+        (1e30, 1.0, 1.0, 9),
+        (TINY, 1.0, 1.0, 0),
+        (2.0, 0.0, 1.0, 9),  # f = 0, negative or NaN: f = 1e-6, so anything beyond is coarse
+        (2.0, -1.0, 1.0, 9),
+        (2.0, math.nan, 1.0, 9),
+        (1.5e-6, math.nan, 1.0, 0),
+        (2.0, TINY, 1.0, 9),
+        (1e300, math.inf, 1.0, 0),  # f = inf: every finite distance is level 0
+        (math.inf, math.inf, 1.0, 9),
+        (1.0, 1.0, 0.0, 9),  # no light at all: coarsest
+        (1.0, 1.0, -1.0, 9),
+        (1.0, 1.0, TINY, 9),
+        (1.0, 1.0, math.nan, 0),  # unknown light: quality
+        (1.0, 1.0, math.inf, 0),
+        (1.0, 1.0, -math.inf, 9),
+    ],
+)
+def test_documented_fallbacks(distance: float, f: float, brightness: float, expected: int) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert _level(distance, f, 9, brightness=brightness, terms=ALL) == expected
@@ -167,23 +204,67 @@ any_float = st.floats()  # includes nan, +-inf, +-0.0 and denormals
 
 
 @SWEEP
-@given(distance=any_float, f=any_float, brightness=any_float, n=st.integers(-3, 20),
-       moving=st.booleans(), gazed=st.booleans(), reference=any_float)
-@example(distance=math.nan, f=math.nan, brightness=math.nan, n=0, moving=True, gazed=True,
-         reference=math.nan)
-@example(distance=1e30, f=TINY, brightness=TINY, n=20, moving=True, gazed=False,
-         reference=sys.float_info.max)
-@example(distance=sys.float_info.max, f=TINY, brightness=-0.0, n=-3, moving=False,
-         gazed=True, reference=TINY)
-@example(distance=-0.0, f=-0.0, brightness=-math.inf, n=5, moving=False, gazed=True,
-         reference=-math.inf)
-def test_level_always_defined(distance: float, f: float, brightness: float, n: int,
-                              moving: bool, gazed: bool, reference: float) -> None:
+@given(
+    distance=any_float,
+    f=any_float,
+    brightness=any_float,
+    n=st.integers(-3, 20),
+    moving=st.booleans(),
+    gazed=st.booleans(),
+    reference=any_float,
+)
+@example(
+    distance=math.nan,
+    f=math.nan,
+    brightness=math.nan,
+    n=0,
+    moving=True,
+    gazed=True,
+    reference=math.nan,
+)
+@example(
+    distance=1e30,
+    f=TINY,
+    brightness=TINY,
+    n=20,
+    moving=True,
+    gazed=False,
+    reference=sys.float_info.max,
+)
+@example(
+    distance=sys.float_info.max,
+    f=TINY,
+    brightness=-0.0,
+    n=-3,
+    moving=False,
+    gazed=True,
+    reference=TINY,
+)
+@example(
+    distance=-0.0, f=-0.0, brightness=-math.inf, n=5, moving=False, gazed=True, reference=-math.inf
+)
+def test_level_always_defined(
+    distance: float,
+    f: float,
+    brightness: float,
+    n: int,
+    moving: bool,
+    gazed: bool,
+    reference: float,
+) -> None:
     with warnings.catch_warnings(), np.errstate(all="raise"):
         warnings.simplefilter("error")
         for terms in (ALL, D_ONLY, PRESETS["psychology"], PRESETS["ergonomics"]):
-            r = level_for(distance, f, n, moving=moving, gazed_fixed=gazed,
-                          brightness=brightness, terms=terms, reference_brightness=reference)
+            r = level_for(
+                distance,
+                f,
+                n,
+                moving=moving,
+                gazed_fixed=gazed,
+                brightness=brightness,
+                terms=terms,
+                reference_brightness=reference,
+            )
             assert type(r.level) is int
             assert 0 <= r.level <= max(n, 0)
             assert r.n == max(n, 0)
@@ -194,18 +275,27 @@ def test_level_defined_on_extreme_grid() -> None:
     # Every combination of the awkward values, on top of the random sweep above.
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        for distance, f, brightness, n in itertools.product(EXTREMES, EXTREMES, EXTREMES,
-                                                            (-1, 0, 9)):
-            level = _level(distance, f, n, moving=True, gazed_fixed=True, brightness=brightness,
-                           terms=ALL)
+        for distance, f, brightness, n in itertools.product(
+            EXTREMES, EXTREMES, EXTREMES, (-1, 0, 9)
+        ):
+            level = _level(
+                distance, f, n, moving=True, gazed_fixed=True, brightness=brightness, terms=ALL
+            )
             assert type(level) is int and 0 <= level <= max(n, 0), (distance, f, brightness, n)
 
 
 @SWEEP
-@given(a=st.floats(allow_nan=False), b=st.floats(allow_nan=False), f=any_float,
-       n=st.integers(-3, 20), moving=st.booleans(), gazed=st.booleans())
-def test_level_monotonic_in_distance(a: float, b: float, f: float, n: int, moving: bool,
-                                     gazed: bool) -> None:
+@given(
+    a=st.floats(allow_nan=False),
+    b=st.floats(allow_nan=False),
+    f=any_float,
+    n=st.integers(-3, 20),
+    moving=st.booleans(),
+    gazed=st.booleans(),
+)
+def test_level_monotonic_in_distance(
+    a: float, b: float, f: float, n: int, moving: bool, gazed: bool
+) -> None:
     near, far = min(a, b), max(a, b)
     for terms in (ALL, D_ONLY):
         kw = {"moving": moving, "gazed_fixed": gazed, "brightness": 0.3, "terms": terms}
@@ -213,8 +303,11 @@ def test_level_monotonic_in_distance(a: float, b: float, f: float, n: int, movin
 
 
 @SWEEP
-@given(brightness=st.floats(min_value=4 * 2.2250738585072014e-308, max_value=1.0),
-       distance=st.floats(allow_nan=False), n=st.integers(0, 20))
+@given(
+    brightness=st.floats(min_value=4 * 2.2250738585072014e-308, max_value=1.0),
+    distance=st.floats(allow_nan=False),
+    n=st.integers(0, 20),
+)
 def test_halving_brightness_adds_one_level(brightness: float, distance: float, n: int) -> None:
     for terms in (L_ONLY, ALL):
         kw = {"moving": False, "gazed_fixed": False, "terms": terms}
@@ -231,7 +324,8 @@ def test_describe_format() -> None:
     assert r.describe("sofa") == "sofa: level 4 = distance 3 + v 1 - g 0 + l 0, clamped to [0, 9]"
     r = level_for(1e6, 1.0, 9, moving=True, gazed_fixed=True, brightness=0.5, terms=ALL)
     assert r.describe("wall") == (
-        "wall: level 9 = distance 19 + v 1 - g 1 + l 1, clamped to [0, 9]")
+        "wall: level 9 = distance 19 + v 1 - g 1 + l 1, clamped to [0, 9]"
+    )
 
 
 # -- pyramids ---------------------------------------------------------------------------------
@@ -246,8 +340,18 @@ def _linear_mean(level: np.ndarray) -> np.ndarray:
 def test_pyramid_sizes() -> None:
     sizes = pyramid_sizes(512, 512)
     assert len(sizes) == 10 and sizes[0] == (512, 512) and sizes[-1] == (1, 1)
-    assert pyramid_sizes(640, 480) == [(640, 480), (320, 240), (160, 120), (80, 60), (40, 30),
-                                       (20, 15), (10, 7), (5, 3), (2, 1), (1, 1)]
+    assert pyramid_sizes(640, 480) == [
+        (640, 480),
+        (320, 240),
+        (160, 120),
+        (80, 60),
+        (40, 30),
+        (20, 15),
+        (10, 7),
+        (5, 3),
+        (2, 1),
+        (1, 1),
+    ]
     assert pyramid_sizes(1, 1) == [(1, 1)]
     assert pyramid_sizes(1, 7) == [(1, 7), (1, 3), (1, 1)]
     assert pyramid_sizes(5, 3) == [(5, 3), (2, 1), (1, 1)]
@@ -257,8 +361,9 @@ def test_pyramid_sizes() -> None:
         pyramid_sizes(0, 4)
 
 
-@pytest.mark.parametrize(("h", "w"), [(512, 512), (480, 640), (1, 1), (1, 7), (7, 1), (3, 5),
-                                      (5, 3), (2, 9), (33, 17)])
+@pytest.mark.parametrize(
+    ("h", "w"), [(512, 512), (480, 640), (1, 1), (1, 7), (7, 1), (3, 5), (5, 3), (2, 9), (33, 17)]
+)
 def test_pyramid_preserves_linear_mean(h: int, w: int) -> None:
     rng = np.random.default_rng(h * 1000 + w)
     rgba = rng.integers(0, 256, (h, w, 4), dtype=np.uint8)
@@ -379,10 +484,19 @@ def test_gaze_fixed_applies_at_once_and_all_states_are_reachable() -> None:
     assert (sm.viewpoint_moving, sm.gaze_fixed) == (True, True)
 
 
-@pytest.mark.parametrize(("dt", "speed"), [
-    (math.nan, 1.0), (math.inf, 1.0), (-math.inf, 1.0), (-1.0, 1.0), (DT, math.nan),
-    (DT, math.inf), (DT, -math.inf), (math.nan, math.nan),
-])
+@pytest.mark.parametrize(
+    ("dt", "speed"),
+    [
+        (math.nan, 1.0),
+        (math.inf, 1.0),
+        (-math.inf, 1.0),
+        (-1.0, 1.0),
+        (DT, math.nan),
+        (DT, math.inf),
+        (DT, -math.inf),
+        (math.nan, math.nan),
+    ],
+)
 def test_bad_samples_do_not_change_the_state(dt: float, speed: float) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -424,8 +538,9 @@ def test_state_machine_parameters() -> None:
 
 
 def _controller() -> TcrController:
-    lo = np.array([[-0.5, -0.5, -5.0], [-0.5, -0.5, -101.0], [-1.0, -1.0, -1.0],
-                   [-0.5, -0.5, -17.0]])
+    lo = np.array(
+        [[-0.5, -0.5, -5.0], [-0.5, -0.5, -101.0], [-1.0, -1.0, -1.0], [-0.5, -0.5, -17.0]]
+    )
     hi = np.array([[0.5, 0.5, -4.0], [0.5, 0.5, -100.0], [1.0, 1.0, 1.0], [0.5, 0.5, -16.0]])
     return TcrController(lo, hi, [9, 9, 9, 0], ["near", "far", "around", "plain"])
 
@@ -461,8 +576,10 @@ def test_controller_gaze_with_psychology_only() -> None:
     assert moving.tolist() == [3, 7, 1, 0]  # +1 everywhere, clamped to n = 0 on "plain"
     # A gazed index that is out of range or None gazes at nothing.
     for gazed in (None, -1, 99):
-        assert np.array_equal(c.update(EYE, gazed, False, True, 1.0, psychology),
-                              c.update(EYE, None, False, False, 1.0, psychology))
+        assert np.array_equal(
+            c.update(EYE, gazed, False, True, 1.0, psychology),
+            c.update(EYE, None, False, False, 1.0, psychology),
+        )
 
 
 def test_controller_brightness_and_disabled() -> None:
@@ -477,21 +594,32 @@ def test_controller_brightness_and_disabled() -> None:
 def test_controller_describe() -> None:
     c = _controller()
     c.update(EYE, 1, True, True, 0.5, TcrSettings(enabled=True, preset="custom", use_g=True))
-    pattern = re.compile(r"^\w+: level \d+ = distance \d+ \+ v [01] - g [01] \+ l \d+, "
-                         r"clamped to \[0, \d+\]$")
+    pattern = re.compile(
+        r"^\w+: level \d+ = distance \d+ \+ v [01] - g [01] \+ l \d+, "
+        r"clamped to \[0, \d+\]$"
+    )
     lines = [r.describe(name) for r, name in zip(c.reasons, c.names)]
     assert all(pattern.match(line) for line in lines), lines
     assert lines[1] == "far: level 7 = distance 6 + v 1 - g 1 + l 1, clamped to [0, 9]"
 
 
-@pytest.mark.parametrize("eye", [[math.nan, 0, 0], [math.inf, 0, 0], [-math.inf, 1e308, 0],
-                                 [1e308, -1e308, 1e308], [TINY, -0.0, 0]])
+@pytest.mark.parametrize(
+    "eye",
+    [
+        [math.nan, 0, 0],
+        [math.inf, 0, 0],
+        [-math.inf, 1e308, 0],
+        [1e308, -1e308, 1e308],
+        [TINY, -0.0, 0],
+    ],
+)
 def test_controller_extreme_eye(eye: list[float]) -> None:
     c = _controller()
     with warnings.catch_warnings(), np.errstate(all="raise"):
         warnings.simplefilter("error")
-        levels = c.update(np.array(eye, np.float64), 0, True, True, math.nan,
-                          TcrSettings(enabled=True))
+        levels = c.update(
+            np.array(eye, np.float64), 0, True, True, math.nan, TcrSettings(enabled=True)
+        )
     assert levels.dtype == np.int32
     assert all(0 <= lv <= n for lv, n in zip(levels.tolist(), c.n_levels))
 
@@ -502,8 +630,9 @@ def test_controller_broken_boxes() -> None:
     c = TcrController(lo, hi, [5, 5, -2], ["nan", "swapped", "huge"])
     with warnings.catch_warnings(), np.errstate(all="raise"):
         warnings.simplefilter("error")
-        levels = c.update(np.array([0.0, 0.0, 3.0]), None, False, False, 1.0,
-                          TcrSettings(enabled=True))
+        levels = c.update(
+            np.array([0.0, 0.0, 3.0]), None, False, False, 1.0, TcrSettings(enabled=True)
+        )
     assert levels.tolist() == [0, 1, 0]  # NaN box -> finest; swapped box is 2 m away
     with pytest.raises(ValueError):
         TcrController(np.zeros((2, 3)), np.zeros((2, 3)), [1], ["a", "b"])

@@ -26,7 +26,7 @@ W, H = 320, 180
 def texel_checker(size: int = 64) -> Texture:
     """Black and white texels alternating: every pyramid level from 1 on is flat grey."""
     yy, xx = np.mgrid[:size, :size]
-    on = ((xx + yy) % 2 == 0)
+    on = (xx + yy) % 2 == 0
     rgba = np.zeros((size, size, 4), np.uint8)
     rgba[on] = 255
     rgba[..., 3] = 255
@@ -38,11 +38,18 @@ def near_far_scene() -> Scene:
     its own texel checker; lit evenly by a light at the eye."""
     near = quad("near", (-0.45, 1.6, -1.0), 0.35, material=0, uv_scale=0.1)  # magnified
     far = quad("far", (6.0, 1.6, -15.0), 5.0, material=1, uv_scale=8.0)  # minified
-    mats = [Material("near", (1, 1, 1, 1), 0, roughness=1.0),
-            Material("far", (1, 1, 1, 1), 1, roughness=1.0)]
-    return Scene("near-far", [near, far], mats, [texel_checker(), texel_checker()],
-                 [PointLight((0, 1.6, 0), (1, 1, 1), 5.0, 100.0)],
-                 Viewpoint((0, 1.6, 0))).sanitized()
+    mats = [
+        Material("near", (1, 1, 1, 1), 0, roughness=1.0),
+        Material("far", (1, 1, 1, 1), 1, roughness=1.0),
+    ]
+    return Scene(
+        "near-far",
+        [near, far],
+        mats,
+        [texel_checker(), texel_checker()],
+        [PointLight((0, 1.6, 0), (1, 1, 1), 5.0, 100.0)],
+        Viewpoint((0, 1.6, 0)),
+    ).sanitized()
 
 
 @pytest.fixture(scope="module")

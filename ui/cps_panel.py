@@ -39,8 +39,11 @@ LEVELS = 6  # s = 0..5: blocks of 1x1 .. 32x32 pixels
 LABELS = {
     "pipeline": {"fragment": "Fragment (graphics pipeline)", "compute": "Compute (the paper's)"},
     "cps.dispatch": {"multi": "One dispatch per level", "single": "Single dispatch, 32x32 tiles"},
-    "cps.filter": {"none": "None (flat blocks)", "bilinear": "Bilinear",
-                   "hierarchical": "Hierarchical bilinear (paper)"},
+    "cps.filter": {
+        "none": "None (flat blocks)",
+        "bilinear": "Bilinear",
+        "hierarchical": "Hierarchical bilinear (paper)",
+    },
 }
 #: The mitigation control: (cps.mode, lighting stage or None for "as it is"), label.
 MITIGATIONS = (
@@ -92,8 +95,7 @@ class LevelShareBar(QWidget):
             for level, share in enumerate(self.shares):
                 w = r.width() * share / total
                 if w > 0:
-                    p.fillRect(QRectF(x, r.top(), w, r.height()),
-                               _qcolor(CPS_LEVEL_COLOURS[level]))
+                    p.fillRect(QRectF(x, r.top(), w, r.height()), _qcolor(CPS_LEVEL_COLOURS[level]))
                 x += w
         p.setPen(QPen(QColor(30, 30, 30), 1))
         p.drawRect(r)
@@ -103,17 +105,22 @@ class LevelShareBar(QWidget):
 class CpsPanel(QWidget):
     """Every ``cps.*`` setting as a control, the level legend, and the live CPS statistics.
 
-The pipeline control edits ``cps.pipeline`` where the model has it, else ``render.lighting``
-(the deferred lighting stage that CPS runs in); ``controls`` maps each key to its widget.
+    The pipeline control edits ``cps.pipeline`` where the model has it, else ``render.lighting``
+    (the deferred lighting stage that CPS runs in); ``controls`` maps each key to its widget.
 
-    ``stats()`` returns a dict in which any key may be missing: ``level_share`` (6 fractions),
-    ``shaded_samples`` and ``full_samples`` (lighting evaluations last frame, and what full rate
-    would have cost), ``edge_caps`` and ``edge_distances`` ([[left, right, bottom]] per eye, the
-    level cap and the hit distance in metres, inf for no hit).
+        ``stats()`` returns a dict in which any key may be missing: ``level_share`` (6 fractions),
+        ``shaded_samples`` and ``full_samples`` (lighting evaluations last frame, and what full rate
+        would have cost), ``edge_caps`` and ``edge_distances`` ([[left, right, bottom]] per eye, the
+        level cap and the hit distance in metres, inf for no hit).
     """
 
-    def __init__(self, settings: Settings, stats: Callable[[], dict],
-                 on_change: Callable[[str], None] | None = None, parent=None) -> None:
+    def __init__(
+        self,
+        settings: Settings,
+        stats: Callable[[], dict],
+        on_change: Callable[[str], None] | None = None,
+        parent=None,
+    ) -> None:
         super().__init__(parent)
         self.settings = settings
         self.stats = stats
@@ -137,8 +144,7 @@ The pipeline control edits ``cps.pipeline`` where the model has it, else ``rende
 
         box = QGroupBox("Detail levels")
         form = QFormLayout(box)
-        self.max_level = self._combo("cps.max_level",
-                                     [(s, block_label(s)) for s in range(LEVELS)])
+        self.max_level = self._combo("cps.max_level", [(s, block_label(s)) for s in range(LEVELS)])
         form.addRow("coarsest block", self.max_level)
         self.fovea = self._spin("cps.fovea_deg", " deg", 1, 1.0)
         form.addRow("fovea radius", self.fovea)
@@ -308,9 +314,12 @@ The pipeline control edits ``cps.pipeline`` where the model has it, else ``rende
             w.blockSignals(True)
         try:
             self.mode.setCurrentIndex(self._mitigation_index())
-            for combo, value in ((self.max_level, c.max_level),
-                                 (self.pipeline, self.settings.get(self.pipeline_key)),
-                                 (self.dispatch, c.dispatch), (self.filter, c.filter)):
+            for combo, value in (
+                (self.max_level, c.max_level),
+                (self.pipeline, self.settings.get(self.pipeline_key)),
+                (self.dispatch, c.dispatch),
+                (self.filter, c.filter),
+            ):
                 combo.setCurrentIndex(combo.findData(value))
             self.fovea.setValue(c.fovea_deg)
             self.falloff.setValue(c.deg_per_level)
@@ -347,8 +356,9 @@ The pipeline control edits ``cps.pipeline`` where the model has it, else ``rende
         else:
             parts = [f"{block_label(s)}\u00a0{100 * v:.0f}%" for s, v in enumerate(shares)]
             self.share_label.setText("   ".join(parts[:3]) + "\n" + "   ".join(parts[3:]))
-        self.samples_label.setText(_samples_text(data.get("shaded_samples"),
-                                                 data.get("full_samples")))
+        self.samples_label.setText(
+            _samples_text(data.get("shaded_samples"), data.get("full_samples"))
+        )
         caps, dists = data.get("edge_caps"), data.get("edge_distances")
         for eye, cells in enumerate(self.edge_labels):
             for side, cell in enumerate(cells):

@@ -25,10 +25,14 @@ from render.renderer import Renderer
 log = logging.getLogger(__name__)
 
 MOVE_KEYS = {
-    Qt.Key.Key_W: (1, 0, 0), Qt.Key.Key_Up: (1, 0, 0),
-    Qt.Key.Key_S: (-1, 0, 0), Qt.Key.Key_Down: (-1, 0, 0),
-    Qt.Key.Key_A: (0, -1, 0), Qt.Key.Key_D: (0, 1, 0),
-    Qt.Key.Key_E: (0, 0, 1), Qt.Key.Key_Q: (0, 0, -1),
+    Qt.Key.Key_W: (1, 0, 0),
+    Qt.Key.Key_Up: (1, 0, 0),
+    Qt.Key.Key_S: (-1, 0, 0),
+    Qt.Key.Key_Down: (-1, 0, 0),
+    Qt.Key.Key_A: (0, -1, 0),
+    Qt.Key.Key_D: (0, 1, 0),
+    Qt.Key.Key_E: (0, 0, 1),
+    Qt.Key.Key_Q: (0, 0, -1),
 }
 TURN_KEYS = {Qt.Key.Key_Left: 1.0, Qt.Key.Key_Right: -1.0}
 TURN_DEG_S = 60.0
@@ -103,8 +107,9 @@ class StereoView(QOpenGLWidget):
         now = time.perf_counter()
         if now - self._text_at > 0.25:  # redraw the statistics text at 4 Hz, not every frame
             self._text_at = now
-            lines = overlay_lines(self.timer.fps, self.renderer.pass_ms(), self.session.settings,
-                                  frame.gaze_fixed)
+            lines = overlay_lines(
+                self.timer.fps, self.renderer.pass_ms(), self.session.settings, frame.gaze_fixed
+            )
             self.renderer.overlay.set_text_image(text_image(lines))
         self.renderer.render(frame, fbo)
         self.timer.tick(now)

@@ -57,8 +57,12 @@ def data_dir() -> Path:
 
 
 class MainWindow(QMainWindow):
-    def __init__(self, settings: Settings | None = None, scene: Scene | None = None,
-                 path: CameraPath | None = None) -> None:
+    def __init__(
+        self,
+        settings: Settings | None = None,
+        scene: Scene | None = None,
+        path: CameraPath | None = None,
+    ) -> None:
         super().__init__()
         self.settings = settings or Settings()
         self.session = Session(self.settings)
@@ -89,15 +93,17 @@ class MainWindow(QMainWindow):
         self.panel = SettingsPanel(self.settings, ("stereo", "render", "navigation", "gaze"))
         self.tcr_panel = TcrPanel(self.session, on_change=self._setting_changed)
         self.cps_panel = CpsPanel(self.settings, self._cps_stats, on_change=self._setting_changed)
-        self.photon_panel = PhotonPanel(self.settings, self._photon_stats,
-                                        on_change=self._setting_changed)
+        self.photon_panel = PhotonPanel(
+            self.settings, self._photon_stats, on_change=self._setting_changed
+        )
         self.panel.on_change = self._setting_changed
         tabs = QTabWidget()
         tabs.addTab(self.tcr_panel, "TCR")
         tabs.addTab(self.cps_panel, "CPS")
         tabs.addTab(self.photon_panel, "Photons")
         self.quality_panel = QualityPanel(
-            lambda: self.view.measure_quality(self._photons_shown), self.view.show_heat_map)
+            lambda: self.view.measure_quality(self._photons_shown), self.view.show_heat_map
+        )
         tabs.addTab(self.quality_panel, "Quality")
         tabs.addTab(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)
@@ -146,18 +152,27 @@ class MainWindow(QMainWindow):
         action(h, "Controls", self.show_controls, "F1")
 
     def show_controls(self) -> None:
-        QMessageBox.information(self, "Controls", (
-            "W/S or Up/Down: walk   A/D: step sideways   Left/Right: turn\n"
-            "Right- or middle-drag: look around\n"
-            "Cursor: gaze point (both eyes)   Hold left button: gaze fixed\n"
-            "Tab: evaluation / normal mode   P: play walkthrough   Ctrl+R: record path\n"
-            "F12: screenshot   Ctrl+B: save viewpoint   Ctrl+O: open a model\n"
-            "F9: measure the frame against full quality (Quality tab, heat map)"))
+        QMessageBox.information(
+            self,
+            "Controls",
+            (
+                "W/S or Up/Down: walk   A/D: step sideways   Left/Right: turn\n"
+                "Right- or middle-drag: look around\n"
+                "Cursor: gaze point (both eyes)   Hold left button: gaze fixed\n"
+                "Tab: evaluation / normal mode   P: play walkthrough   Ctrl+R: record path\n"
+                "F12: screenshot   Ctrl+B: save viewpoint   Ctrl+O: open a model\n"
+                "F9: measure the frame against full quality (Quality tab, heat map)"
+            ),
+        )
 
     # -- modes ---------------------------------------------------------------------------------
     def eventFilter(self, obj: QObject, event: QEvent) -> bool:
-        if (event.type() == QEvent.Type.KeyPress and event.key() == Qt.Key.Key_Tab
-                and isinstance(obj, QWidget) and obj.window() is self):
+        if (
+            event.type() == QEvent.Type.KeyPress
+            and event.key() == Qt.Key.Key_Tab
+            and isinstance(obj, QWidget)
+            and obj.window() is self
+        ):
             self.toggle_mode()
             return True
         return super().eventFilter(obj, event)
@@ -175,8 +190,9 @@ class MainWindow(QMainWindow):
     # -- scenes --------------------------------------------------------------------------------
     def open_dialog(self) -> None:
         patterns = " ".join(f"*{e}" for e in SUPPORTED_EXTENSIONS)
-        path, _ = QFileDialog.getOpenFileName(self, "Open scene", "",
-                                              f"Scenes ({patterns});;All files (*)")
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Open scene", "", f"Scenes ({patterns});;All files (*)"
+        )
         if path:
             self.load(path)
 
@@ -266,8 +282,9 @@ class MainWindow(QMainWindow):
         return target
 
     def save_preset(self) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, "Save settings preset",
-                                              str(data_dir() / "preset.json"), "JSON (*.json)")
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Save settings preset", str(data_dir() / "preset.json"), "JSON (*.json)"
+        )
         if path:
             try:
                 self.settings.save(path)
@@ -275,8 +292,9 @@ class MainWindow(QMainWindow):
                 self.show_error("Cannot save preset", str(exc))
 
     def load_preset(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Load settings preset", str(data_dir()),
-                                              "JSON (*.json)")
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Load settings preset", str(data_dir()), "JSON (*.json)"
+        )
         if path:
             self.apply_preset(path)
 
@@ -310,8 +328,9 @@ class MainWindow(QMainWindow):
         edge = self.session.edge
         if edge:
             stats["edge_caps"] = [[e.caps[s] for s in ("left", "right", "bottom")] for e in edge]
-            stats["edge_distances"] = [[e.distances[s] for s in ("left", "right", "bottom")]
-                                       for e in edge]
+            stats["edge_distances"] = [
+                [e.distances[s] for s in ("left", "right", "bottom")] for e in edge
+            ]
         return stats
 
     def measure_quality(self) -> dict:
@@ -322,7 +341,9 @@ class MainWindow(QMainWindow):
             frame = report.get("frame") or {}
             self.statusBar().showMessage(
                 f"Against full quality: FLIP {frame.get('flip', float('nan')):.3f}, "
-                f"PSNR {frame.get('psnr', float('nan')):.1f} dB (Quality tab)", 8000)
+                f"PSNR {frame.get('psnr', float('nan')):.1f} dB (Quality tab)",
+                8000,
+            )
         return report
 
     # -- photon mapping ------------------------------------------------------------------------
@@ -365,8 +386,7 @@ class MainWindow(QMainWindow):
             def progress(fraction: float) -> None:
                 self._trace_progress = fraction  # read by the panel's 4 Hz poll
 
-            future = self._tracer.submit(trace, copy.copy(s), scene, progress,
-                                         lambda: cancel[0])
+            future = self._tracer.submit(trace, copy.copy(s), scene, progress, lambda: cancel[0])
             self._tracing = (future, key, scene, cancel)
 
     def _photon_stats(self) -> dict:
@@ -407,13 +427,17 @@ class MainWindow(QMainWindow):
         all_vp = self._read_viewpoints()
         mine = all_vp.setdefault(scene.name, {})
         if not name:
-            name, ok = QInputDialog.getText(self, "Save viewpoint", "Name:",
-                                            text=f"Viewpoint {len(mine) + 1}")
+            name, ok = QInputDialog.getText(
+                self, "Save viewpoint", "Name:", text=f"Viewpoint {len(mine) + 1}"
+            )
             if not ok or not name:
                 return
         w = self.session.walker
-        mine[name] = {"position": [float(v) for v in w.position], "yaw_deg": w.yaw_deg,
-                      "pitch_deg": w.pitch_deg}
+        mine[name] = {
+            "position": [float(v) for v in w.position],
+            "yaw_deg": w.yaw_deg,
+            "pitch_deg": w.pitch_deg,
+        }
         atomic_write_json(self._viewpoints_file(), all_vp)
         self._refresh_viewpoints()
         self.statusBar().showMessage(f"Viewpoint '{name}' saved", 5000)
@@ -427,8 +451,11 @@ class MainWindow(QMainWindow):
             return
         for name, vp in self._read_viewpoints().get(scene.name, {}).items():
             a = QAction(name, self)
-            a.triggered.connect(lambda _=False, v=vp: self.go_to(Viewpoint(
-                tuple(v["position"]), v.get("yaw_deg", 0.0), v.get("pitch_deg", 0.0))))
+            a.triggered.connect(
+                lambda _=False, v=vp: self.go_to(
+                    Viewpoint(tuple(v["position"]), v.get("yaw_deg", 0.0), v.get("pitch_deg", 0.0))
+                )
+            )
             menu.addAction(a)
 
     def go_to(self, vp: Viewpoint) -> None:
@@ -464,10 +491,14 @@ class MainWindow(QMainWindow):
         scene = s.scene
         t = self.settings.tcr
         phase = phase_name(terms_from_settings(t)) if t.enabled else "TCR off"
-        return {"state": s.state, "phase": phase, "fps": self.view.timer.fps,
-                "gazed": s.gazed_object(),
-                "resident_mb": self.view.texture_resident_bytes() / 1e6,
-                "scene": f"{scene.name} · {scene.triangle_count:,} tris" if scene else ""}
+        return {
+            "state": s.state,
+            "phase": phase,
+            "fps": self.view.timer.fps,
+            "gazed": s.gazed_object(),
+            "resident_mb": self.view.texture_resident_bytes() / 1e6,
+            "scene": f"{scene.name} · {scene.triangle_count:,} tris" if scene else "",
+        }
 
     def closeEvent(self, event) -> None:
         QApplication.instance().removeEventFilter(self)

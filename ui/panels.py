@@ -28,8 +28,13 @@ from app.settings import Settings
 class SettingsPanel(QScrollArea):
     """One group per settings section; every edit goes through ``Settings.set``."""
 
-    def __init__(self, settings: Settings, sections: tuple[str, ...],
-                 on_change: Callable[[str], None] | None = None, parent=None) -> None:
+    def __init__(
+        self,
+        settings: Settings,
+        sections: tuple[str, ...],
+        on_change: Callable[[str], None] | None = None,
+        parent=None,
+    ) -> None:
         super().__init__(parent)
         self.settings = settings
         self.on_change = on_change
@@ -68,8 +73,10 @@ class SettingsPanel(QScrollArea):
             return w
         w = QDoubleSpinBox()
         w.setDecimals(3)
-        w.setRange(meta.get("lo") if meta.get("lo") is not None else -1e9,
-                   meta.get("hi") if meta.get("hi") is not None else 1e9)
+        w.setRange(
+            meta.get("lo") if meta.get("lo") is not None else -1e9,
+            meta.get("hi") if meta.get("hi") is not None else 1e9,
+        )
         w.setSingleStep(max(0.01, abs(float(value)) * 0.05))
         w.setValue(float(value))
         w.setKeyboardTracking(False)
@@ -98,8 +105,12 @@ class SettingsPanel(QScrollArea):
 class EvaluationBar(QWidget):
     """Mode, viewpoint/gaze state, fps and the gazed object, polled at 4 Hz."""
 
-    STATE_NAMES = {0: "viewpoint still, gaze moving", 1: "viewpoint moving, gaze moving",
-                   2: "viewpoint still, gaze fixed", 3: "viewpoint moving, gaze fixed"}
+    STATE_NAMES = {
+        0: "viewpoint still, gaze moving",
+        1: "viewpoint moving, gaze moving",
+        2: "viewpoint still, gaze fixed",
+        3: "viewpoint moving, gaze fixed",
+    }
 
     def __init__(self, poll: Callable[[], dict], parent=None) -> None:
         super().__init__(parent)

@@ -16,14 +16,24 @@ from PyQt6.QtWidgets import QFormLayout, QGroupBox, QLabel, QProgressBar, QVBoxL
 from app.settings import Settings
 from ui.panels import SettingsPanel
 
-FIELDS = (("status", "Indirect light"), ("stored", "Photons stored"),
-          ("trace", "Traced in"), ("gather", "Gather (both eyes)"),
-          ("reuse", "Right eye reused"), ("grid", "Hash grid"))
+FIELDS = (
+    ("status", "Indirect light"),
+    ("stored", "Photons stored"),
+    ("trace", "Traced in"),
+    ("gather", "Gather (both eyes)"),
+    ("reuse", "Right eye reused"),
+    ("grid", "Hash grid"),
+)
 
 
 class PhotonPanel(QWidget):
-    def __init__(self, settings: Settings, stats: Callable[[], dict],
-                 on_change: Callable[[str], None] | None = None, parent=None) -> None:
+    def __init__(
+        self,
+        settings: Settings,
+        stats: Callable[[], dict],
+        on_change: Callable[[str], None] | None = None,
+        parent=None,
+    ) -> None:
         super().__init__(parent)
         self.stats = stats
         layout = QVBoxLayout(self)

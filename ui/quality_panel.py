@@ -26,8 +26,9 @@ METRICS = (("psnr", "PSNR dB"), ("ssim", "SSIM"), ("flip", "FLIP"))
 
 
 class QualityPanel(QWidget):
-    def __init__(self, measure: Callable[[], dict], show_heat: Callable[[object], None],
-                 parent=None) -> None:
+    def __init__(
+        self, measure: Callable[[], dict], show_heat: Callable[[object], None], parent=None
+    ) -> None:
         super().__init__(parent)
         self._measure = measure
         self._show_heat = show_heat
@@ -50,14 +51,18 @@ class QualityPanel(QWidget):
         grid.addWidget(QLabel("fovea, largest difference"), len(REGIONS) + 1, 0, 1, 2)
         grid.addWidget(self.fovea_diff, len(REGIONS) + 1, 2, 1, 2)
         layout.addWidget(box)
-        self.heat = QCheckBox("Show the FLIP heat map over the view (dark: no error; "
-                              "purple, orange, pale yellow: FLIP 0.25 and above)")
+        self.heat = QCheckBox(
+            "Show the FLIP heat map over the view (dark: no error; "
+            "purple, orange, pale yellow: FLIP 0.25 and above)"
+        )
         self.heat.setEnabled(False)
         self.heat.toggled.connect(self._toggle_heat)
         layout.addWidget(self.heat)
-        note = QLabel("Full quality: finest texture levels, full-rate lighting without a mask, "
-                      "the photon map gathered for each eye. The heat map is a snapshot of "
-                      "the measured frame; measure again after moving.")
+        note = QLabel(
+            "Full quality: finest texture levels, full-rate lighting without a mask, "
+            "the photon map gathered for each eye. The heat map is a snapshot of "
+            "the measured frame; measure again after moving."
+        )
         note.setWordWrap(True)
         layout.addWidget(note)
         layout.addStretch(1)

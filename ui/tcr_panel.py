@@ -28,8 +28,12 @@ from app.session import Session
 from app.tcr import PRESETS, phase_name, terms_from_settings
 from render.passes import LEVEL_TINTS
 
-STATES = ((0, "still", "gaze moves", "d, l"), (1, "moving", "gaze moves", "d, v, l"),
-          (2, "still", "gaze fixed", "d, g, l"), (3, "moving", "gaze fixed", "d, v, g, l"))
+STATES = (
+    (0, "still", "gaze moves", "d, l"),
+    (1, "moving", "gaze moves", "d, v, l"),
+    (2, "still", "gaze fixed", "d, g, l"),
+    (3, "moving", "gaze fixed", "d, v, g, l"),
+)
 
 
 class StateDiagram(QWidget):
@@ -57,14 +61,18 @@ class StateDiagram(QWidget):
             p.setPen(QPen(QColor(30, 30, 30), 1))
             p.drawRoundedRect(r, 6, 6)
             p.setPen(QColor(0, 0, 0) if lit else QColor(220, 220, 220))
-            p.drawText(r, Qt.AlignmentFlag.AlignCenter,
-                       f"state {state}\nviewpoint {view}, {gaze}\n{params}")
+            p.drawText(
+                r,
+                Qt.AlignmentFlag.AlignCenter,
+                f"state {state}\nviewpoint {view}, {gaze}\n{params}",
+            )
         p.end()
 
 
 class TcrPanel(QWidget):
-    def __init__(self, session: Session, on_change: Callable[[str], None] | None = None,
-                 parent=None) -> None:
+    def __init__(
+        self, session: Session, on_change: Callable[[str], None] | None = None, parent=None
+    ) -> None:
         super().__init__(parent)
         self.session = session
         self.settings = session.settings
@@ -115,8 +123,11 @@ class TcrPanel(QWidget):
             r, g, b = (int(c * 255) for c in colour)
             swatch.setStyleSheet(f"background: rgb({r},{g},{b}); border: 1px solid #444")
             grid.addWidget(swatch, level // 4, (level % 4) * 2)
-            text = "0 (finest)" if level == 0 else (f"{level}+" if level == len(LEVEL_TINTS) - 1
-                                                    else str(level))
+            text = (
+                "0 (finest)"
+                if level == 0
+                else (f"{level}+" if level == len(LEVEL_TINTS) - 1 else str(level))
+            )
             grid.addWidget(QLabel(text), level // 4, (level % 4) * 2 + 1)
         layout.addWidget(legend)
 
@@ -154,8 +165,15 @@ class TcrPanel(QWidget):
         """Show the model's values (after a change here, a preset load, or the CLI)."""
         t = self.settings.tcr
         terms = terms_from_settings(t)
-        widgets = (self.enabled, self.preset, self.mode, self.f, self.dimmer, self.tint,
-                   *self.terms.values())
+        widgets = (
+            self.enabled,
+            self.preset,
+            self.mode,
+            self.f,
+            self.dimmer,
+            self.tint,
+            *self.terms.values(),
+        )
         for w in widgets:
             w.blockSignals(True)
         self.enabled.setChecked(t.enabled)
