@@ -17,6 +17,45 @@ SCENES = Path(
 )
 
 
+# The reference images assume Mesa's software rasterizer (llvmpipe): force it before any GL
+# context exists, so a machine with a GPU (or another EGL vendor first in glvnd's list) renders
+# the same pixels. ``pytest_sessionstart`` says once which renderer the session got.
+SOFTWARE_GL = {
+    "LIBGL_ALWAYS_SOFTWARE": "1",
+    "GALLIUM_DRIVER": "llvmpipe",
+    "__GLX_VENDOR_LIBRARY_NAME": "mesa",
+}
+MESA_EGL_VENDOR = Path("/usr/share/glvnd/egl_vendor.d/50_mesa.json")
+os.environ.update(SOFTWARE_GL)
+if MESA_EGL_VENDOR.exists():
+    os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"] = str(MESA_EGL_VENDOR)
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    line = _gl_renderer_line()
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:  # shown even under -q
+        reporter.write_line(line)
+
+
+def _gl_renderer_line() -> str:
+    from render.context import GLUnavailableError, create_headless
+
+    try:
+        ctx = create_headless()
+    except GLUnavailableError as exc:
+        return f"OpenGL: none ({exc})"
+    try:
+        renderer = ctx.info.get("GL_RENDERER", "?")
+    finally:
+        ctx.release()
+    if "llvmpipe" not in renderer and "softpipe" not in renderer:
+        raise pytest.UsageError(
+            f"tests need Mesa's software rasterizer for their reference images, got {renderer!r}"
+        )
+    return f"OpenGL: {renderer} (Mesa software rasterizer forced: LIBGL_ALWAYS_SOFTWARE=1)"
+
+
 def pytest_configure(config: pytest.Config) -> None:
     # The Qt window needs a 4.3 core context; the format must be set before QApplication exists.
     from PyQt6.QtGui import QSurfaceFormat

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 from typing import Any
 
@@ -133,11 +132,9 @@ def test_texture_sizes_and_paintings(room: Scene) -> None:
     assert piano.roughness <= 0.15 and max(piano.base_color[:3]) < 0.02  # black, glossy
 
 
-def test_texture_set_is_fast_and_complete() -> None:
-    start = time.perf_counter()
+def test_texture_set_is_complete() -> None:
+    # How long it takes is a benchmark figure (``scene_load_s`` in ``vrpreview bench``).
     textures = make_textures()
-    elapsed = time.perf_counter() - start
-    assert elapsed < 3.0, f"texture set took {elapsed:.2f} s"  # ~0.3 s normally; CI is slower
     assert set(PAINTING_ASPECTS) <= set(textures)
     assert {"wallpaper", "parquet", "ceiling", "fabric", "wood"} <= set(textures)
 
