@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings as hypothesis_settings
 from PIL import Image
 
 REFERENCES = Path(__file__).parent / "references"
@@ -29,6 +30,12 @@ MESA_EGL_VENDOR = Path("/usr/share/glvnd/egl_vendor.d/50_mesa.json")
 os.environ.update(SOFTWARE_GL)
 if MESA_EGL_VENDOR.exists():
     os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"] = str(MESA_EGL_VENDOR)
+
+
+# Property tests are deterministic too (the same examples on every run and in CI; no example
+# database carried between runs).
+hypothesis_settings.register_profile("deterministic", derandomize=True, database=None)
+hypothesis_settings.load_profile("deterministic")
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:

@@ -205,7 +205,13 @@ coord = st.floats(-50.0, 50.0, allow_nan=False, width=32)
 def test_property_candidates_hold_all_within_r(pts, qs, base, unit, r, cpr) -> None:
     pos = (base + np.array(pts, np.float64).reshape(-1, 3) * unit).astype(np.float32)
     r *= unit
-    grid = HashGrid.build(pos, r, cpr)
+    try:
+        grid = HashGrid.build(pos, r, cpr)
+    except GridTooLarge as exc:
+        # float32 rounding far from the origin can widen the extent past the cell limit: that
+        # is the documented refusal, as long as the grid really would be too large.
+        assert exc.cells > MAX_CELLS, exc
+        return
     check_structure(grid, pos)
     # queries near the photons (and at them), in the photons' units
     q = base + np.array(qs, np.float64).reshape(-1, 3) * unit
