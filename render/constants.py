@@ -49,42 +49,48 @@ PM_MAX_K = 64
 PM_NO_WINNER = 0xFFFFFFFF
 
 # Image units, keyed by the image uniform's name without "u_": the shaders declare
-# ``layout(binding = IMAGE_UNIT_<NAME>)``, Python binds with ``render.resources.bind_image``.
+# ``layout(binding = IMAGE_UNIT_<NAME>)``, Python binds with ``render.pass_graph.bind_image``.
+# One unit per name, so no two images of any program variant can meet on a unit.
 IMAGE_UNITS = {
     "out": 0,  # the compute passes' output image
     "counts": 1,  # light culling: per-tile counts
     "lists": 2,  # light culling: per-tile lists
-    "reuse_winner": 1,  # photon gather: the right eye's winners (read only)
     "winner": 3,  # photon reuse scatter: the winners (read-write)
+    "reuse_winner": 4,  # photon gather: the right eye's winners (read only)
 }
 
 # Texture units, keyed by the sampler uniform's name without "u_"; every sampler bind goes
-# through ``render.resources.bind_texture`` with this table. A program's samplers must not
-# share a unit (tests/test_constants.py checks each shader's samplers against it).
+# through ``render.pass_graph.bind_texture`` with this table. One unit per name (GL 4.3
+# guarantees 80 combined units), so no two samplers of any program variant share one.
 TEXTURE_UNITS = {
-    "albedo": 0,  # a mesh's albedo texture (geometry passes)
-    "eye_color": 0,
-    "text": 0,
-    "heat": 0,
-    "gb_albedo": 1,
-    "left_depth": 1,
-    "gb_normal": 2,
-    "right_depth": 2,
-    "gb_depth": 3,
-    "depth": 3,
-    "bounds": 3,
-    "levels": 4,
-    "atlas": 5,
-    "blocks": 5,
-    "lit": 5,
-    "current": 5,
-    "left_result": 5,
-    "history": 6,
-    "tile_counts": 6,
-    "tile_lists": 7,
-    "indirect": 8,
-    "pm_records": 8,
-    "pm_starts": 9,
+    name: unit
+    for unit, name in enumerate(
+        (
+            "albedo",  # a mesh's albedo texture (geometry passes)
+            "gb_albedo",
+            "gb_normal",
+            "gb_depth",
+            "levels",
+            "atlas",
+            "blocks",
+            "lit",
+            "current",
+            "history",
+            "tile_counts",
+            "tile_lists",
+            "indirect",
+            "pm_records",
+            "pm_starts",
+            "left_depth",
+            "right_depth",
+            "left_result",
+            "depth",
+            "bounds",
+            "eye_color",
+            "text",
+            "heat",
+        )
+    )
 }
 
 
