@@ -20,8 +20,9 @@ and the grid's start array, each twice: as SSBOs (bindings 0 and 1, the data con
 unsigned integer textures 4096 texels wide (samplers u_pm_records, u_pm_starts). The gather
 reads the textures by default because Mesa's llvmpipe runs an SSBO load in a divergent loop as
 a per-lane scalar loop (about 9x slower here); ``PhotonGather(source="ssbo")`` reads the SSBOs
-instead, bit for bit the same result. On llvmpipe ``shared`` is slower than ``radius`` (its barriers cost more than the
-shared fetches save); it is there for the paper's comparison and for real GPUs.
+instead, bit for bit the same result. On llvmpipe ``shared`` is slower than ``radius`` (its
+barriers cost more than the shared fetches save); it is there for the paper's comparison and for
+real GPUs.
 """
 
 from __future__ import annotations
