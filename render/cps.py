@@ -20,17 +20,25 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
-from app.camera import EyeView, gl_bytes
+from app.camera import EyeView
 from app.cps import MAX_LEVEL
 from app.settings import CpsSettings
-from render.passes import (
-    BACKGROUND,
-    EyeTargets,
+from render.pass_graph import (
     FrameContext,
     RenderPass,
-    _scene_uniforms,
+    Resources,
+    bind_image,
+    bind_texture,
+    set_uniforms,
+)
+from render.passes import (
+    BACKGROUND,
+    LIGHTING_EXTRAS,
+    EyeTargets,
+    deferred,
     deferred_inputs,
     lighting_defines,
+    scene_uniforms,
 )
 from render.shaders import ShaderLibrary
 
@@ -43,6 +51,11 @@ class CpsFrame:
     caps: list[tuple[float, float, float]]  # side caps per eye: left, right, bottom
     frame_index: int = 0  # alternation of the temporal filter
     hits: list[np.ndarray] = field(default_factory=list)  # edge-ray hits (world), drawn if shown
+
+
+def cps_mode(settings) -> str:
+    """The CPS mode this frame runs: CPS and the masks need the deferred path."""
+    return settings.cps.mode if deferred(settings) else "none"
 
 
 def atlas_layout(width: int, height: int) -> tuple[tuple[int, int], list[tuple[int, int]]]:
@@ -115,13 +128,18 @@ def detail_uniforms(
     caps: tuple[float, float, float],
     s: CpsSettings,
 ) -> None:
-    prog["u_size"].value = (eye.width, eye.height)
-    prog["u_inv_projection"].write(gl_bytes(np.linalg.inv(eye.projection)))
-    prog["u_gaze_dir"].value = gaze_view_dir(eye, gaze)
-    prog["u_caps"].value = tuple(float(c) for c in caps)
-    prog["u_fovea_deg"].value = float(s.fovea_deg)
-    prog["u_deg_per_level"].value = float(s.deg_per_level)
-    prog["u_max_level"].value = int(min(max(s.max_level, 0), MAX_LEVEL))
+    set_uniforms(
+        prog,
+        {
+            "u_size": (eye.width, eye.height),
+            "u_inv_projection": np.linalg.inv(eye.projection),
+            "u_gaze_dir": gaze_view_dir(eye, gaze),
+            "u_caps": tuple(float(c) for c in caps),
+            "u_fovea_deg": float(s.fovea_deg),
+            "u_deg_per_level": float(s.deg_per_level),
+            "u_max_level": int(min(max(s.max_level, 0), MAX_LEVEL)),
+        },
+    )
 
 
 class CpsEyeTargets:
@@ -174,13 +192,11 @@ class CpsEyeTargets:
 
 
 class CpsState:
-    """The CPS targets of both eyes plus what the passes of one frame share."""
+    """The CPS targets of both eyes (and whether the level maps hold a frame's levels)."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self.eyes: list[CpsEyeTargets] = []
-        self.frame: CpsFrame | None = None
-        self.mode = "none"
         self.level_maps_valid = False
 
     def ensure(self, targets: list[EyeTargets]) -> None:
@@ -210,22 +226,30 @@ class CpsState:
 
 
 class CpsPass(RenderPass):
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, state: CpsState) -> None:
-        super().__init__(ctx, shaders)
-        self.state = state
+    """A CPS pass: its targets are the CPS state's (``res.cps_state``), the frame's detail
+    inputs ``frame.cps`` (a CpsFrame)."""
+
+    @property
+    def state(self) -> CpsState:
+        return self.res.cps_state
 
 
 class CpsLevelPass(CpsPass):
     """The half-resolution level map of each eye."""
 
     name = "cps_levels"
+    writes = ("levels",)
 
-    def execute(self, frame: FrameContext) -> None:
-        cf = self.state.frame
-        assert cf is not None
+    def configure(self, settings, scene, frame) -> bool:
+        on = deferred(settings) and (cps_mode(settings) == "cps" or settings.cps.visualize)
+        self.state.level_maps_valid = self.state.level_maps_valid and on
+        return on
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        cf = frame.cps
         prog = self.shaders.program("fullscreen.vert.glsl", "cps_levels.frag.glsl")
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for index, (eye, tgt) in enumerate(zip(frame.eyes, self.state.eyes)):
+        for index, (eye, tgt) in enumerate(zip(frame.eyes, res.cps)):
             detail_uniforms(prog, eye, frame.gaze, cf.caps[index], cf.settings)
             weak = cf.settings.temporal and (cf.frame_index + index) % 2 == 1
             prog["u_level_offset"].value = 1 if weak else 0
@@ -238,35 +262,41 @@ class CpsLightingPass(CpsPass):
     """Lighting once per block: per level into the atlas (fragment) or in compute."""
 
     name = "cps_lighting"
+    reads = ("depth", "normal", "albedo", "levels")
+    optional_reads = LIGHTING_EXTRAS
+    writes = ("blocks",)
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, state: CpsState) -> None:
-        super().__init__(ctx, shaders, state)
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
         self.stage = "fragment"
         self.dispatch = "multi"
 
-    def execute(self, frame: FrameContext) -> None:
-        cf = self.state.frame
-        assert cf is not None
+    def configure(self, settings, scene, frame) -> bool:
+        self.stage = settings.render.lighting
+        self.dispatch = settings.cps.dispatch
+        return cps_mode(settings) == "cps"
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        cf = frame.cps
         frame.scene.light_buffer.bind_to_uniform_block(0)
         compute = self.stage == "compute"
-        defines = lighting_defines(frame)
+        defines = lighting_defines(res)
         if compute:
             prog = self.shaders.compute(
                 "cps_lighting.comp.glsl", {"MULTI_LEVEL": self.dispatch == "multi", **defines}
             )
         else:
             prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl", defines)
-        _scene_uniforms(prog, frame)
+        scene_uniforms(prog, frame)
         prog["u_background"].value = BACKGROUND
         max_level = int(min(max(cf.settings.max_level, 0), MAX_LEVEL))
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
+        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, res.targets, res.cps)):
             w, h = tgt.size
-            deferred_inputs(prog, frame, eye, tgt)
-            cps.levels.use(4)
-            prog["u_levels"].value = 4
+            deferred_inputs(prog, res, eye, index)
+            bind_texture(prog, "levels", cps.levels)
             if compute:
-                cps.blocks.bind_to_image(0, read=False, write=True)
+                bind_image(cps.blocks, "out")
                 if self.dispatch == "multi":
                     for s in range(max_level + 1):
                         prog["u_level"].value = s
@@ -297,14 +327,20 @@ class CpsFilterPass(CpsPass):
     """Blocks back to pixels: raw, ordinary bilinear or the paper's hierarchical filter."""
 
     name = "cps_filter"
+    reads = ("levels", "blocks")
+    writes = ("hdr",)  # or "filtered", before the temporal filter
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, state: CpsState) -> None:
-        super().__init__(ctx, shaders, state)
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
         self.from_atlas = True
 
-    def execute(self, frame: FrameContext) -> None:
-        cf = self.state.frame
-        assert cf is not None
+    def configure(self, settings, scene, frame) -> bool:
+        self.from_atlas = settings.render.lighting == "fragment"
+        self.writes = ("filtered",) if settings.cps.temporal else ("hdr",)
+        return cps_mode(settings) == "cps"
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        cf = frame.cps
         kind = cf.settings.filter
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
@@ -317,19 +353,14 @@ class CpsFilterPass(CpsPass):
         )
         self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for tgt, cps in zip(frame.targets, self.state.eyes):
-            if "u_size" in prog:  # unused (optimised out) without a filter
-                prog["u_size"].value = tgt.size
-            cps.levels.use(4)
-            if "u_levels" in prog:  # raw compute blocks need no level map
-                prog["u_levels"].value = 4
+        for tgt, cps in zip(res.targets, res.cps):
+            set_uniforms(prog, {}, optional={"u_size": tgt.size})  # optimised out unfiltered
+            bind_texture(prog, "levels", cps.levels, optional=True)  # raw blocks need none
             if self.from_atlas:
-                cps.atlas.use(5)
-                prog["u_atlas"].value = 5
+                bind_texture(prog, "atlas", cps.atlas)
                 prog["u_atlas_offsets"].write(np.array(cps.atlas_offsets, np.int32).tobytes())
             else:
-                cps.blocks.use(5)
-                prog["u_blocks"].value = 5
+                bind_texture(prog, "blocks", cps.blocks)
             fbo = cps.filtered_fbo if cf.settings.temporal else tgt.forward
             fbo.use()
             self.fullscreen(prog)
@@ -339,11 +370,21 @@ class CpsMaskPass(CpsPass):
     """Black or blur mask over the full-rate lighting (the paper's comparisons)."""
 
     name = "cps_mask"
+    reads = ("hdr",)
+    writes = ("hdr",)
 
-    def execute(self, frame: FrameContext) -> None:
-        cf = self.state.frame
-        assert cf is not None
-        black = self.state.mode == "black-mask"
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
+        self.black = True
+
+    def configure(self, settings, scene, frame) -> bool:
+        mode = cps_mode(settings)
+        self.black = mode == "black-mask"
+        return mode in ("black-mask", "blur-mask")
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        cf = frame.cps
+        black = self.black
         prog = self.shaders.program(
             "fullscreen.vert.glsl", "cps_mask.frag.glsl", {"BLACK_MASK": black}
         )
@@ -351,13 +392,12 @@ class CpsMaskPass(CpsPass):
             moderngl.FRAMEBUFFER_BARRIER_BIT | moderngl.TEXTURE_FETCH_BARRIER_BIT
         )
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
+        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, res.targets, res.cps)):
             self.ctx.copy_framebuffer(cps.lit_fbo, tgt.forward)
             if not black:
                 cps.lit.build_mipmaps()
             detail_uniforms(prog, eye, frame.gaze, cf.caps[index], cf.settings)
-            cps.lit.use(5)
-            prog["u_lit"].value = 5
+            bind_texture(prog, "lit", cps.lit)
             tgt.forward.use()
             self.fullscreen(prog)
 
@@ -366,34 +406,46 @@ class CpsTemporalPass(CpsPass):
     """Alternating temporal filter with optional reprojection of the history."""
 
     name = "cps_temporal"
+    reads = ("filtered", "depth", "levels")  # and its own history of the previous frame
+    writes = ("hdr", "history")
 
-    def execute(self, frame: FrameContext) -> None:
-        cf = self.state.frame
-        assert cf is not None
+    def configure(self, settings, scene, frame) -> bool:
+        on = cps_mode(settings) == "cps" and settings.cps.temporal
+        if not on:
+            self.reset()
+        return on
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        cf = frame.cps
         s = cf.settings
         prog = self.shaders.program(
             "fullscreen.vert.glsl", "cps_temporal.frag.glsl", {"REPROJECT": s.reproject}
         )
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, frame.targets, self.state.eyes)):
+        for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, res.targets, res.cps)):
             weak = (cf.frame_index + index) % 2 == 1  # this frame is the finer one
             previous = cps.history[cps.history_index]
             fbo = cps.temporal_fbos[1 - cps.history_index]
-            cps.filtered.use(5)
-            previous.use(6)
-            tgt.depth.use(3)
-            cps.levels.use(4)
-            prog["u_current"].value, prog["u_history"].value, prog["u_gb_depth"].value = 5, 6, 3
-            prog["u_levels"].value = 4
-            prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
-            prog["u_eye"].value = tuple(eye.position)
-            prog["u_size"].value = tgt.size
-            if "u_prev_view_projection" in prog:  # reprojection only
-                prog["u_prev_view_projection"].write(gl_bytes(cps.prev_view_projection))
-                prog["u_prev_eye"].value = tuple(float(v) for v in cps.prev_eye)
+            bind_texture(prog, "current", cps.filtered)
+            bind_texture(prog, "history", previous)
+            bind_texture(prog, "gb_depth", tgt.depth)
+            bind_texture(prog, "levels", cps.levels)
             w = float(s.history_weight)
-            prog["u_current_weight"].value = w if weak else 1.0 - w
-            prog["u_has_history"].value = int(cps.has_history)
+            set_uniforms(
+                prog,
+                {
+                    "u_inv_view_projection": eye.inverse_view_projection,
+                    "u_eye": tuple(eye.position),
+                    "u_size": tgt.size,
+                    "u_current_weight": w if weak else 1.0 - w,
+                    "u_has_history": int(cps.has_history),
+                },
+                # The REPROJECT variant only.
+                optional={
+                    "u_prev_view_projection": cps.prev_view_projection,
+                    "u_prev_eye": tuple(float(v) for v in cps.prev_eye),
+                },
+            )
             fbo.use()
             self.fullscreen(prog)
             cps.history_index = 1 - cps.history_index

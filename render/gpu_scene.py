@@ -13,10 +13,10 @@ import moderngl
 import numpy as np
 
 from app.scene import Material, Scene
+from render.constants import MAX_LIGHTS
 from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
-MAX_LIGHTS = 1024  # must match shading.glsl; 32 KiB of the 64 KiB uniform block limit
 VERTEX_FORMAT = "3f 3f 2f 3f"
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_color")
 

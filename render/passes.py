@@ -1,28 +1,39 @@
-"""Render passes: small classes with named inputs and outputs, an ``enabled`` flag and a timer.
-
-A frame is a short list of these (see ``Renderer.render``). Each pass owns the GL objects it
-creates and releases them; none are created per frame.
+"""Render passes of the frame: each declares what it reads and writes (``render.pass_graph``),
+owns its on/off rule (``configure``) and the GL objects it creates; none are made per frame.
+The CPS passes live in ``render.cps``, the photon pass in ``render.photons``.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
-from typing import Any
 
 import moderngl
 import numpy as np
 
 from app.camera import EyeView, gl_bytes
-from render.gpu_scene import GpuScene
+from render.constants import (
+    ALL_LIGHTS,
+    CPS_LEVEL_COLOURS,  # noqa: F401 - re-exported (ui.cps_panel, tests)
+    LEVEL_TINTS,
+    LIGHT_TILE,
+    MAX_PER_TILE,
+    TEXTURE_UNITS,
+)
+from render.pass_graph import (
+    FrameContext,
+    RenderPass,
+    Resources,
+    bind_image,
+    bind_texture,
+    release_query,
+    set_uniforms,
+)
 from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
 BACKGROUND = (0.02, 0.02, 0.025)
-LIGHT_TILE = 16  # must match light_tiles.glsl
-MAX_PER_TILE = 128
-ALL_LIGHTS = 65535
+CULL_MIN_LIGHTS = 8  # light culling runs for scenes with more lights than this
 
 
 class EyeTargets:
@@ -69,103 +80,26 @@ class EyeTargets:
             obj.release()
 
 
-# CPS detail visualisation (paper Fig. 2): finest unpainted, then blue, cyan, green, yellow, red.
-CPS_LEVEL_COLOURS = (
-    (1.0, 1.0, 1.0),
-    (0.15, 0.35, 1.0),
-    (0.0, 0.9, 0.9),
-    (0.1, 0.85, 0.1),
-    (1.0, 0.95, 0.0),
-    (1.0, 0.1, 0.1),
-)
-
-# Level legend for the TCR tint: level 0 unpainted, then blue, cyan, green, yellow, orange, red.
-LEVEL_TINTS = (
-    (1.0, 1.0, 1.0),
-    (0.15, 0.35, 1.0),
-    (0.0, 0.9, 0.9),
-    (0.1, 0.85, 0.1),
-    (1.0, 0.95, 0.0),
-    (1.0, 0.55, 0.0),
-    (1.0, 0.1, 0.1),
-)
-
-
 def level_tint(level: int) -> tuple[float, float, float]:
     return LEVEL_TINTS[min(max(level, 0), len(LEVEL_TINTS) - 1)]
 
 
-@dataclass
-class FrameContext:
-    """What every pass of one frame may read."""
-
-    eyes: list[EyeView]
-    targets: list[EyeTargets]
-    scene: GpuScene
-    light_scale: float
-    ambient: float
-    exposure: float
-    out: moderngl.Framebuffer
-    out_origin: tuple[int, int]  # lower-left of the stereo view inside ``out``
-    gaze: tuple[float, float]
-    gaze_fixed: bool
-    levels: list[int] | None = None  # TCR level per mesh (None: full quality)
-    tcr_mode: str = "clamp"
-    tint: bool = False
-    culled: bool = False  # tiled light lists are ready (LightCullPass ran this frame)
-    level_maps: list[moderngl.Texture] | None = None  # CPS detail visualisation, per eye
-    markers: list[list[tuple[int, int]]] | None = None  # per eye, pixels from the bottom-left
-    indirect: list[moderngl.Texture] | None = None  # photon irradiance per eye (PhotonPass)
-    # photons.fused: the photon map and the gather's defines, for the lighting shader itself
-    fused_photons: tuple[Any, dict[str, object]] | None = None
-    show_reuse: bool = False  # paint the right eye's reused / gathered indirect pixels
+def deferred(settings) -> bool:
+    return settings.render.path == "deferred"
 
 
-class RenderPass:
-    name = "pass"
-
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
-        self.ctx = ctx
-        self.shaders = shaders
-        self.enabled = True
-        self._query = ctx.query(time=True)
-        self.last_ms = 0.0
-        self.samples = 0  # shaded samples in the last frame, where the pass knows them
-        self._fullscreen_vaos: dict[int, moderngl.VertexArray] = {}
-
-    def run(self, frame: FrameContext) -> None:
-        if not self.enabled:
-            self.last_ms = 0.0
-            return
-        with self._query:
-            self.execute(frame)
-        self.last_ms = self._query.elapsed / 1e6
-
-    def execute(self, frame: FrameContext) -> None:
-        raise NotImplementedError  # each pass defines its work
-
-    def fullscreen(self, prog: moderngl.Program) -> None:
-        """Draw one viewport-covering triangle with ``prog`` (no vertex buffer)."""
-        vao = self._fullscreen_vaos.get(prog.glo)
-        if vao is None:
-            vao = self._fullscreen_vaos[prog.glo] = self.ctx.vertex_array(prog, [])
-        vao.render(moderngl.TRIANGLES, vertices=3)
-
-    def release(self) -> None:
-        _release_query(self._query)
-        for vao in self._fullscreen_vaos.values():
-            vao.release()
-        self._fullscreen_vaos.clear()
-
-
-def _scene_uniforms(prog: moderngl.Program, frame: FrameContext) -> None:
-    for name, value in (
-        ("u_light_count", len(frame.scene.lights)),
-        ("u_light_scale", frame.light_scale),
-        ("u_ambient", frame.ambient),
-    ):
-        if name in prog:
-            prog[name].value = value
+def scene_uniforms(prog: moderngl.Program, frame: FrameContext) -> None:
+    """The lights' count and scale and the ambient term. Optional: the geometry passes share
+    this with variants (G-buffer, emissive) that shade nothing, so lack them."""
+    set_uniforms(
+        prog,
+        {},
+        optional={
+            "u_light_count": len(frame.scene.lights),
+            "u_light_scale": frame.light_scale,
+            "u_ambient": frame.ambient,
+        },
+    )
 
 
 def _draw_meshes(
@@ -180,26 +114,29 @@ def _draw_meshes(
             defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
             defines["TCR_TINT"] = frame.tint
         prog = shaders.program("geometry.vert.glsl", fragment, defines)
-        prog["u_view_projection"].write(gl_bytes(eye.view_projection))
-        prog["u_base_color"].value = tuple(mesh.material.base_color)
-        if "u_roughness" in prog:
-            prog["u_roughness"].value = mesh.material.roughness
-        if "u_metallic" in prog:
-            prog["u_metallic"].value = mesh.material.metallic
-        if "u_eye" in prog:
+        mat = mesh.material
+        set_uniforms(
+            prog,
+            {"u_view_projection": eye.view_projection, "u_base_color": tuple(mat.base_color)},
+            # Per fragment shader: the G-buffer stores roughness / metallic, the forward path
+            # shades with them and the eye; neither reads u_emissive (emissive.frag does).
+            optional={
+                "u_roughness": mat.roughness,
+                "u_metallic": mat.metallic,
+                "u_emissive": tuple(mat.emissive),
+            },
+        )
+        if "u_eye" in prog:  # the forward path: it lights the fragments itself
             prog["u_eye"].value = tuple(eye.position)
-            _scene_uniforms(prog, frame)
-        if "u_emissive" in prog:
-            prog["u_emissive"].value = tuple(mesh.material.emissive)
+            scene_uniforms(prog, frame)
         level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
             resident = streamer.resident[mesh.texture]
-            resident.tex.use(0)
-            prog["u_albedo"].value = 0
-            if "u_level" in prog:
-                prog["u_level"].value = float(level - resident.base)
-        if "u_tint" in prog:
-            prog["u_tint"].value = level_tint(level)
+            bind_texture(prog, "albedo", resident.tex)
+            # Only the TCR variants sample a chosen pyramid level.
+            set_uniforms(prog, {}, optional={"u_level": float(level - resident.base)})
+        # Only the TCR_TINT variant paints the level.
+        set_uniforms(prog, {}, optional={"u_tint": level_tint(level)})
         frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
 
 
@@ -207,42 +144,58 @@ class GBufferPass(RenderPass):
     """Per eye: depth, world normal + roughness, albedo + metallic."""
 
     name = "gbuffer"
+    writes = ("depth", "normal", "albedo")
 
-    def execute(self, frame: FrameContext) -> None:
+    def configure(self, settings, scene, frame) -> bool:
+        return deferred(settings)
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
         ctx = self.ctx
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        for eye, tgt in zip(frame.eyes, frame.targets):
+        for eye, tgt in zip(frame.eyes, res.targets):
             tgt.gbuffer.use()
             tgt.gbuffer.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             _draw_meshes(ctx, self.shaders, frame, eye, "gbuffer.frag.glsl")
         ctx.disable(moderngl.DEPTH_TEST)
 
 
+# What the deferred lighting uses when an earlier pass made it (deferred.glsl variants).
+LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map")
+
+
 class LightingPass(RenderPass):
     """Deferred lighting at full rate, in a compute shader (default) or a fragment shader."""
 
     name = "lighting"
+    reads = ("depth", "normal", "albedo")
+    optional_reads = LIGHTING_EXTRAS
+    writes = ("hdr",)
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
-        super().__init__(ctx, shaders)
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
         self.stage = "compute"
 
-    def execute(self, frame: FrameContext) -> None:
+    def configure(self, settings, scene, frame) -> bool:
+        self.stage = settings.render.lighting
+        # Full rate unless coarse pixel shading lights the blocks (the masks need it too).
+        return deferred(settings) and settings.cps.mode != "cps"
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
         frame.scene.light_buffer.bind_to_uniform_block(0)
-        defines = lighting_defines(frame)
+        defines = lighting_defines(res)
         if self.stage == "compute":
             prog = self.shaders.compute("lighting.comp.glsl", defines)
         else:
             prog = self.shaders.program("fullscreen.vert.glsl", "lighting.frag.glsl", defines)
-        _scene_uniforms(prog, frame)
+        scene_uniforms(prog, frame)
         prog["u_background"].value = BACKGROUND
         self.samples = 0
-        for eye, tgt in zip(frame.eyes, frame.targets):
+        for index, (eye, tgt) in enumerate(zip(frame.eyes, res.targets)):
             w, h = tgt.size
-            deferred_inputs(prog, frame, eye, tgt)
+            deferred_inputs(prog, res, eye, index)
             if self.stage == "compute":
-                tgt.color.bind_to_image(0, read=False, write=True)
+                bind_image(tgt.color, "out")
                 prog.run(math.ceil(w / 8), math.ceil(h / 8))
             else:
                 tgt.forward.use()
@@ -254,43 +207,48 @@ class LightingPass(RenderPass):
             )
 
 
-def lighting_defines(frame: FrameContext) -> dict[str, object]:
+def lighting_defines(res: Resources) -> dict[str, object]:
     """The deferred.glsl variant this frame needs (tile lists, photon-map indirect light)."""
+    fused = res.get("photon_map")
     defines: dict[str, object] = {
-        "TILED_LIGHTS": frame.culled,
-        "INDIRECT": frame.indirect is not None,
+        "TILED_LIGHTS": res.written("tile_lists"),
+        "INDIRECT": res.get("indirect") is not None,
     }
-    if frame.fused_photons is not None:
-        defines.update(INDIRECT_FUSED=True, **frame.fused_photons[1])
+    if fused is not None:
+        defines.update(INDIRECT_FUSED=True, **fused[1])
     return defines
 
 
-def deferred_inputs(
-    prog: moderngl.Program, frame: FrameContext, eye: EyeView, tgt: EyeTargets
-) -> None:
-    """What deferred.glsl's light_texel reads for one eye: the G-buffer (units 1-3), the tile
-    light lists, the indirect light (unit 8), the eye and the viewport size."""
-    if frame.indirect is not None and "u_indirect" in prog:
-        frame.indirect[frame.targets.index(tgt)].use(8)
-        prog["u_indirect"].value = 8
-    if frame.fused_photons is not None:
-        frame.fused_photons[0].bind(prog)  # records and starts on units 8 and 9
-    tgt.albedo.use(1)
-    tgt.normal.use(2)
-    tgt.depth.use(3)
-    prog["u_gb_albedo"].value, prog["u_gb_normal"].value, prog["u_gb_depth"].value = 1, 2, 3
-    use_tiles(prog, frame, tgt)
-    prog["u_inv_view_projection"].write(gl_bytes(eye.inverse_view_projection))
-    prog["u_eye"].value = tuple(eye.position)
-    prog["u_size"].value = tgt.size
+def deferred_inputs(prog: moderngl.Program, res: Resources, eye: EyeView, index: int) -> None:
+    """What deferred.glsl's light_texel reads for one eye: the G-buffer, the tile light lists,
+    the indirect light, the eye and the viewport size (units from TEXTURE_UNITS)."""
+    tgt = res.targets[index]
+    indirect = res.get("indirect")
+    if indirect is not None:
+        bind_texture(prog, "indirect", indirect[index])
+    fused = res.get("photon_map")
+    if fused is not None:
+        fused[0].bind(prog)  # records and starts (pm_records, pm_starts)
+    bind_texture(prog, "gb_albedo", tgt.albedo)
+    bind_texture(prog, "gb_normal", tgt.normal)
+    bind_texture(prog, "gb_depth", tgt.depth)
+    use_tiles(prog, res, index)
+    set_uniforms(
+        prog,
+        {
+            "u_inv_view_projection": eye.inverse_view_projection,
+            "u_eye": tuple(eye.position),
+            "u_size": tgt.size,
+        },
+    )
 
 
-def use_tiles(prog: moderngl.Program, frame: FrameContext, tgt: EyeTargets) -> None:
-    """Bind this eye's tiled light lists (units 6 and 7) when the program reads them."""
-    if frame.culled and "u_tile_counts" in prog:
-        tgt.tile_counts.use(6)
-        tgt.tile_lists.use(7)
-        prog["u_tile_counts"].value, prog["u_tile_lists"].value = 6, 7
+def use_tiles(prog: moderngl.Program, res: Resources, index: int) -> None:
+    """Bind this eye's tiled light lists when light culling ran this frame."""
+    if res.written("tile_lists"):
+        tgt = res.targets[index]
+        bind_texture(prog, "tile_counts", tgt.tile_counts)
+        bind_texture(prog, "tile_lists", tgt.tile_lists)
 
 
 class LightCullPass(RenderPass):
@@ -300,8 +258,18 @@ class LightCullPass(RenderPass):
     what one tile shows. ``evaluations()`` reports the light evaluations with and without."""
 
     name = "light_cull"
+    reads = ("depth",)
+    writes = ("tile_lists",)
 
-    def execute(self, frame: FrameContext) -> None:
+    def configure(self, settings, scene, frame) -> bool:
+        # With a handful of lights the culling pass costs more than it saves.
+        return (
+            deferred(settings)
+            and settings.render.light_culling
+            and len(scene.lights) > CULL_MIN_LIGHTS
+        )
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
         first = self.shaders.program(
             "fullscreen.vert.glsl", "depth_bounds.frag.glsl", {"FROM_DEPTH": True}
         )
@@ -310,30 +278,33 @@ class LightCullPass(RenderPass):
         frame.scene.light_buffer.bind_to_uniform_block(0)
         cull["u_light_count"].value = len(frame.scene.lights)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        for eye, tgt in zip(frame.eyes, frame.targets):
+        for eye, tgt in zip(frame.eyes, res.targets):
             # Tile depth ranges: four 2x2 min/max reductions in the graphics pipeline (on
             # llvmpipe far cheaper than shared-memory atomics in a compute shader).
             src_size = tgt.size
             for level, fbo in enumerate(tgt.bounds_fbos):
-                prog = first if level == 0 else step
                 if level == 0:
-                    tgt.depth.use(3)
-                    prog["u_depth"].value = 3
+                    prog = first
+                    bind_texture(prog, "depth", tgt.depth)
                 else:
-                    tgt.bounds[level - 1].use(3)
-                    prog["u_bounds"].value = 3
+                    prog = step
+                    bind_texture(prog, "bounds", tgt.bounds[level - 1])
                 prog["u_src_size"].value = src_size
                 fbo.use()
                 self.fullscreen(prog)
                 src_size = tgt.bounds[level].size
-            tgt.bounds[-1].use(3)
-            cull["u_bounds"].value = 3
-            tgt.tile_counts.bind_to_image(1, read=False, write=True)
-            tgt.tile_lists.bind_to_image(2, read=False, write=True)
-            cull["u_view"].write(gl_bytes(eye.view))
-            cull["u_inv_projection"].write(gl_bytes(np.linalg.inv(eye.projection)))
-            cull["u_size"].value = tgt.size
-            cull["u_tiles"].value = tgt.tiles
+            bind_texture(cull, "bounds", tgt.bounds[-1])
+            bind_image(tgt.tile_counts, "counts")
+            bind_image(tgt.tile_lists, "lists")
+            set_uniforms(
+                cull,
+                {
+                    "u_view": eye.view,
+                    "u_inv_projection": np.linalg.inv(eye.projection),
+                    "u_size": tgt.size,
+                    "u_tiles": tgt.tiles,
+                },
+            )
             cull.run(-(-tgt.tiles[0] // 8), -(-tgt.tiles[1] // 8))
         self.ctx.memory_barrier(
             moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
@@ -364,8 +335,13 @@ class EmissivePass(RenderPass):
     """Deferred path: add the glow of emissive meshes on top of the lit image."""
 
     name = "emissive"
+    reads = ("depth", "hdr")
+    writes = ("hdr",)
 
-    def execute(self, frame: FrameContext) -> None:
+    def configure(self, settings, scene, frame) -> bool:
+        return deferred(settings)
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
         emitters = [i for i, m in enumerate(frame.scene.meshes) if any(m.material.emissive)]
         if not emitters:
             return
@@ -375,7 +351,7 @@ class EmissivePass(RenderPass):
         ctx.depth_func = "<="
         ctx.blend_func = moderngl.ONE, moderngl.ONE
         prog = self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
-        for eye, tgt in zip(frame.eyes, frame.targets):
+        for eye, tgt in zip(frame.eyes, res.targets):
             tgt.forward.use()
             tgt.forward.depth_mask = False
             prog["u_view_projection"].write(gl_bytes(eye.view_projection))
@@ -391,18 +367,22 @@ class ForwardPass(RenderPass):
     """The baseline: geometry lit per fragment, straight into each eye's HDR target."""
 
     name = "forward"
+    writes = ("depth", "hdr")
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
-        super().__init__(ctx, shaders)
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
         self._samples_query = ctx.query(samples=True)
 
-    def execute(self, frame: FrameContext) -> None:
+    def configure(self, settings, scene, frame) -> bool:
+        return not deferred(settings)
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
         ctx = self.ctx
         frame.scene.light_buffer.bind_to_uniform_block(0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
         with self._samples_query:
-            for eye, tgt in zip(frame.eyes, frame.targets):
+            for eye, tgt in zip(frame.eyes, res.targets):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
                 _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl")
@@ -411,41 +391,45 @@ class ForwardPass(RenderPass):
 
     def release(self) -> None:
         super().release()
-        _release_query(self._samples_query)
+        release_query(self._samples_query)
 
 
 class PresentPass(RenderPass):
-    """Both eyes side by side into the output, tone-mapped and sRGB-encoded."""
+    """Both eyes side by side into the output, tone-mapped and sRGB-encoded; with the CPS
+    level map painted when visualised, and the photons' reuse when asked."""
 
     name = "present"
+    reads = ("hdr",)
+    optional_reads = ("levels", "indirect", "show_reuse")
+    writes = ("out",)
 
-    def execute(self, frame: FrameContext) -> None:
-        visualize = frame.level_maps is not None
-        show_reuse = frame.show_reuse and frame.indirect is not None
+    def configure(self, settings, scene, frame) -> bool:
+        self.visualize = settings.cps.visualize
+        return True
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        levels = res.get("levels") if self.visualize else None
+        indirect = res.get("indirect")
+        show_reuse = bool(res.get("show_reuse")) and indirect is not None
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "present.frag.glsl",
-            {"VISUALIZE": visualize, "SHOW_REUSE": show_reuse},
+            {"VISUALIZE": levels is not None, "SHOW_REUSE": show_reuse},
         )
-        if visualize:
-            prog["u_levels"].value = 1
-        if show_reuse:
-            prog["u_indirect"].value = 2
-        w, h = frame.targets[0].size
+        w, h = res.targets[0].size
         frame.out.use()
         x, y = frame.out_origin
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        prog["u_eye_color"].value = 0
         prog["u_exposure"].value = frame.exposure
-        for index, tgt in enumerate(frame.targets):
+        for index, tgt in enumerate(res.targets):
             origin = (x + index * w, y)
             frame.out.viewport = (*origin, w, h)
             prog["u_origin"].value = origin
-            tgt.color.use(0)
-            if visualize:
-                frame.level_maps[index].use(1)
+            bind_texture(prog, "eye_color", tgt.color)
+            if levels is not None:
+                bind_texture(prog, "levels", levels[index])
             if show_reuse:
-                frame.indirect[index].use(2)
+                bind_texture(prog, "indirect", indirect[index])
                 prog["u_paint_reuse"].value = index
             self.fullscreen(prog)
         frame.out.viewport = (x, y, 2 * w, h)
@@ -458,16 +442,25 @@ class OverlayPass(RenderPass):
     """
 
     name = "overlay"
+    reads = ("out",)
+    optional_reads = ("levels",)  # the edge-ray markers go with the level map's visualisation
+    writes = ("out",)
     MARKER = 12
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
-        super().__init__(ctx, shaders)
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
         self.text_rgba: np.ndarray | None = None
         self._text_tex: moderngl.Texture | None = None
         self._dirty = False
         self.show_text = True
         self._heat_tex: moderngl.Texture | None = None
         self.show_heat = True  # off while the quality probe renders the frame it measures
+        self.show_markers = False
+
+    def configure(self, settings, scene, frame) -> bool:
+        self.show_text = settings.render.overlay
+        self.show_markers = settings.cps.visualize
+        return True
 
     def set_heat_map(self, rgba: np.ndarray | None) -> None:
         """An (h, w, 4) uint8 error heat map over the whole view (row 0 at the top; drawn
@@ -502,10 +495,10 @@ class OverlayPass(RenderPass):
             self._text_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._text_tex.write(np.ascontiguousarray(np.flipud(img)).tobytes())
 
-    def execute(self, frame: FrameContext) -> None:
+    def execute(self, frame: FrameContext, res: Resources) -> None:
         self._upload()
         prog = self.shaders.program("fullscreen.vert.glsl", "overlay.frag.glsl")
-        w, h = frame.targets[0].size
+        w, h = res.targets[0].size
         x0, y0 = frame.out_origin
         frame.out.use()
         frame.out.viewport = (x0, y0, 2 * w, h)
@@ -520,16 +513,15 @@ class OverlayPass(RenderPass):
         )
         if self._heat_tex is not None and self.show_heat:
             heat = self.shaders.program("fullscreen.vert.glsl", "heatmap.frag.glsl")
-            self._heat_tex.use(0)
-            heat["u_heat"].value = 0
-            heat["u_origin"].value = (x0, y0)
-            heat["u_view_size"].value = (2 * w, h)
+            bind_texture(heat, "heat", self._heat_tex)
+            set_uniforms(heat, {"u_origin": (x0, y0), "u_view_size": (2 * w, h)})
             self.fullscreen(heat)
         show_text = self.show_text and self._text_tex is not None
         tw, th = self._text_tex.size if show_text else (0, 0)
         if show_text:
-            self._text_tex.use(0)
-        prog["u_text"].value = 0
+            bind_texture(prog, "text", self._text_tex)
+        else:
+            prog["u_text"].value = TEXTURE_UNITS["text"]  # nothing drawn: any texture will do
         prog["u_text_size"].value = (tw, th)
         prog["u_view_size"].value = (2 * w, h)
         prog["u_origin"].value = (x0, y0)
@@ -550,7 +542,8 @@ class OverlayPass(RenderPass):
             self.fullscreen(prog)
         ctx.scissor = None
         ctx.disable(moderngl.BLEND)
-        for e, points in enumerate(frame.markers or []):  # edge-ray hits: small magenta squares
+        markers = project_hits(frame) if self.show_markers and res.written("levels") else []
+        for e, points in enumerate(markers):  # edge-ray hits: small magenta squares
             for px, py in points:
                 if -3 <= px <= w + 2 and -3 <= py <= h + 2:  # on the view's edge: kept inside
                     px, py = min(max(px, 2), w - 3), min(max(py, 2), h - 3)
@@ -565,11 +558,22 @@ class OverlayPass(RenderPass):
         self.set_heat_map(None)
 
 
-def _release_query(query: moderngl.Query) -> None:
-    # moderngl 5.x exposes no Query.release(); its glo is freed with the context.
-    release = getattr(query, "release", None) or getattr(query.mglo, "release", None)
-    if release is not None:
-        release()
+def project_hits(frame: FrameContext) -> list[list[tuple[int, int]]]:
+    """Edge-ray hit points as pixels of each eye (from the bottom-left); behind the eye: none."""
+    out: list[list[tuple[int, int]]] = []
+    hits_per_eye = frame.edge_hits
+    for index, eye in enumerate(frame.eyes):
+        points: list[tuple[int, int]] = []
+        hits = hits_per_eye[index] if hits_per_eye and index < len(hits_per_eye) else None
+        if hits is not None and len(hits):
+            h = np.asarray(hits, np.float64).reshape(-1, 3)
+            clip = np.c_[h, np.ones(len(h))] @ eye.view_projection.T
+            ok = clip[:, 3] > 1e-9
+            ndc = clip[ok, :2] / clip[ok, 3:4]
+            for x, y in ndc:
+                points.append((int((x * 0.5 + 0.5) * eye.width), int((y * 0.5 + 0.5) * eye.height)))
+        out.append(points)
+    return out
 
 
 class ObjectIdPass(RenderPass):
@@ -577,8 +581,8 @@ class ObjectIdPass(RenderPass):
 
     name = "ids"
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
-        super().__init__(ctx, shaders)
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
         self._targets: list[tuple[moderngl.Texture, moderngl.Texture, moderngl.Framebuffer]] = []
         self.result: list[np.ndarray] = []
 
@@ -591,8 +595,8 @@ class ObjectIdPass(RenderPass):
             depth = self.ctx.depth_texture(size)
             self._targets.append((ids, depth, self.ctx.framebuffer([ids], depth)))
 
-    def execute(self, frame: FrameContext) -> None:
-        self._ensure(frame.targets[0].size)
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        self._ensure(res.targets[0].size)
         prog = self.shaders.program("geometry.vert.glsl", "ids.frag.glsl")
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.BLEND)
@@ -600,7 +604,7 @@ class ObjectIdPass(RenderPass):
         for eye, (ids, _depth, fbo) in zip(frame.eyes, self._targets):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            prog["u_view_projection"].write(gl_bytes(eye.view_projection))
+            set_uniforms(prog, {"u_view_projection": eye.view_projection})
             for index in range(len(frame.scene.meshes)):
                 prog["u_id"].value = float(index + 1)
                 frame.scene.vao(prog, index).render(moderngl.TRIANGLES)

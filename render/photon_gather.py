@@ -17,11 +17,12 @@ Variants (``VARIANTS``), as in the paper's tables:
 
 On the GPU a map is the 32-byte records (``PhotonMap.records``, sorted by cell or in tree order)
 and the grid's start array, each twice: as SSBOs (bindings 0 and 1, the data contract) and as
-unsigned integer textures 4096 texels wide (units 8 and 9). The gather reads the textures by
-default because Mesa's llvmpipe runs an SSBO load in a divergent loop as a per-lane scalar loop
-(about 9x slower here); ``PhotonGather(source="ssbo")`` reads the SSBOs instead, bit for bit the
-same result. On llvmpipe ``shared`` is slower than ``radius`` (its barriers cost more than the
-shared fetches save); it is there for the paper's comparison and for real GPUs.
+unsigned integer textures 4096 texels wide (samplers u_pm_records, u_pm_starts). The gather
+reads the textures by default because Mesa's llvmpipe runs an SSBO load in a divergent loop as
+a per-lane scalar loop (about 9x slower here); ``PhotonGather(source="ssbo")`` reads the SSBOs
+instead, bit for bit the same result. On llvmpipe ``shared`` is slower than ``radius`` (its
+barriers cost more than the shared fetches save); it is there for the paper's comparison and for
+real GPUs.
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ import numpy as np
 from app.camera import gl_bytes
 from app.hashgrid import HashGrid, KdTree, check_radius
 from app.photon_map import PhotonMap
+from render.constants import PM_GROUP, PM_MAX_K, PM_NO_WINNER, PM_TEX_SHIFT
+from render.pass_graph import bind_image, bind_texture, set_uniforms
 from render.shaders import ShaderLibrary
 
 VARIANTS = ("radius", "radius-half", "heap", "kdtree", "kdtree-heap", "shared")
@@ -49,15 +52,12 @@ STRUCTURE_OF = {
     "kdtree-heap": "kdtree",
     "shared": "grid",
 }
-MAX_K = 64  # the heap lives in registers / private memory; the shader refuses more
-GROUP = 64  # invocations per work group in both entries (8x8 and 64x1); SHARED relies on it
-NO_WINNER = 0xFFFFFFFF  # u_reuse_winner's "no left pixel lands here"
+MAX_K = PM_MAX_K  # the heap lives in registers / private memory; the shader refuses more
+GROUP = PM_GROUP  # invocations per work group in both entries (8x8 and 64x1); SHARED relies on it
+NO_WINNER = PM_NO_WINNER  # u_reuse_winner's "no left pixel lands here"
 COUNTER_NAMES = ("gathered", "reused", "visited", "within")
-# Texture units used by gather_image (the same as passes.deferred_inputs for the G-buffer).
-UNIT_NORMAL, UNIT_DEPTH, UNIT_LEVELS, UNIT_LEFT = 2, 3, 4, 5
-# The records and the start array as textures (the fast path on llvmpipe, see photon_gather.glsl)
-UNIT_RECORDS, UNIT_STARTS = 8, 9
-TEX_SHIFT = 12  # must match PM_TEX_SHIFT
+# Texture and image units: render.constants.TEXTURE_UNITS / IMAGE_UNITS (by sampler name).
+TEX_SHIFT = PM_TEX_SHIFT  # injected into the shaders as PM_TEX_SHIFT
 TEX_WIDTH = 1 << TEX_SHIFT
 # SSBO bindings (photon_gather.glsl and photon_points.comp.glsl).
 BIND_PHOTONS, BIND_START, BIND_COUNTERS, BIND_POINTS, BIND_NORMALS, BIND_OUT = 0, 1, 2, 3, 4, 5
@@ -136,16 +136,13 @@ class GpuPhotonMap:
         return 2 * (self.photons.size + self.start.size)
 
     def bind(self, prog: moderngl.ComputeShader | moderngl.Program) -> None:
-        """Bind the photon (0) and start (1) SSBOs, the same data as textures (units 8, 9) and
-        set the u_pm_* uniforms ``prog`` uses."""
+        """Bind the photon (0) and start (1) SSBOs, the same data as textures (pm_records,
+        pm_starts; the PM_SSBO variant has none) and set the u_pm_* uniforms ``prog`` uses
+        (the kd-tree variants have no grid; a zero-photon estimate may drop the rest)."""
         self.photons.bind_to_storage_buffer(BIND_PHOTONS)
         self.start.bind_to_storage_buffer(BIND_START)
-        if "u_pm_records" in prog:
-            self.records_texture.use(UNIT_RECORDS)
-            prog["u_pm_records"].value = UNIT_RECORDS
-        if "u_pm_starts" in prog:
-            self.starts_texture.use(UNIT_STARTS)
-            prog["u_pm_starts"].value = UNIT_STARTS
+        bind_texture(prog, "pm_records", self.records_texture, optional=True)
+        bind_texture(prog, "pm_starts", self.starts_texture, optional=True)
         r2 = self.radius * self.radius
         values: dict[str, Any] = {
             "u_pm_count": self.photon_count,
@@ -158,9 +155,7 @@ class GpuPhotonMap:
                 u_pm_cell=float(self.grid.cell),
                 u_pm_dims=tuple(int(v) for v in self.grid.dims),
             )
-        for name, value in values.items():
-            if name in prog:
-                prog[name].value = value
+        set_uniforms(prog, {}, optional=values)
 
     def release(self) -> None:
         for obj in (self.photons, self.start, self.records_texture, self.starts_texture):
@@ -288,21 +283,23 @@ class PhotonGather:
         w, h = int(size[0]), int(size[1])
         gmap.bind(prog)
         self._counters.bind_to_storage_buffer(BIND_COUNTERS)
-        normal.use(UNIT_NORMAL)
-        depth.use(UNIT_DEPTH)
-        prog["u_gb_normal"].value, prog["u_gb_depth"].value = UNIT_NORMAL, UNIT_DEPTH
-        prog["u_inv_view_projection"].write(gl_bytes(np.asarray(inv_view_projection)))
-        prog["u_size"].value = (w, h)
+        bind_texture(prog, "gb_normal", normal)
+        bind_texture(prog, "gb_depth", depth)
+        set_uniforms(
+            prog,
+            {
+                "u_inv_view_projection": gl_bytes(np.asarray(inv_view_projection)),
+                "u_size": (w, h),
+            },
+        )
         if block_rate:
             assert levels is not None
-            levels.use(UNIT_LEVELS)
-            prog["u_levels"].value = UNIT_LEVELS
+            bind_texture(prog, "levels", levels)
         if reuse is not None:
             winner, left = reuse
-            winner.bind_to_image(1, read=True, write=False)
-            left.use(UNIT_LEFT)
-            prog["u_left_result"].value = UNIT_LEFT
-        out.bind_to_image(0, read=False, write=True)
+            bind_image(winner, "reuse_winner", read=True, write=False)
+            bind_texture(prog, "left_result", left)
+        bind_image(out, "out")
         prog.run(-(-w // 8), -(-h // 8))
         self.ctx.memory_barrier(
             moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT

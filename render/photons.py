@@ -19,10 +19,17 @@ import time
 import moderngl
 import numpy as np
 
-from app.camera import gl_bytes
 from app.photon_map import PhotonMap
 from app.settings import PhotonSettings
-from render.passes import FrameContext, RenderPass
+from render.pass_graph import (
+    FrameContext,
+    RenderPass,
+    Resources,
+    bind_image,
+    bind_texture,
+    set_uniforms,
+)
+from render.passes import deferred
 from render.photon_gather import NO_WINNER, STRUCTURE_OF, GpuPhotonMap, PhotonGather
 from render.shaders import ShaderLibrary
 
@@ -30,10 +37,15 @@ log = logging.getLogger(__name__)
 
 
 class PhotonPass(RenderPass):
-    name = "photons"
+    """Per eye the photons' irradiance ("indirect"), or, fused, the photon map that the
+    lighting gathers itself ("photon_map"). At block rate (CPS) it reads the level map."""
 
-    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary) -> None:
-        super().__init__(ctx, shaders)
+    name = "photons"
+    reads = ("depth", "normal")
+    writes = ("indirect", "photon_map", "show_reuse")
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
         self.gather = PhotonGather(ctx, shaders)
         self.settings = PhotonSettings()
         self.photons: PhotonMap | None = None
@@ -43,7 +55,6 @@ class PhotonPass(RenderPass):
         self.winner: moderngl.Texture | None = None
         self._clear_winner = b""
         self.block_rate = False
-        self.level_maps: list[moderngl.Texture] | None = None
         self.measure = False  # bench: wall-clock per eye (waits for the GPU between eyes)
         self.eye_ms = [0.0, 0.0]
         self.error: str | None = None  # why there is no indirect light (a grid too large...)
@@ -92,7 +103,14 @@ class PhotonPass(RenderPass):
         self._clear_output = np.zeros(size[0] * size[1] * 4, np.float32).tobytes()
 
     # -- the frame -----------------------------------------------------------------------------
-    def execute(self, frame: FrameContext) -> None:
+    def configure(self, settings, scene, frame) -> bool:
+        self.settings = settings.photons
+        # Gather only at the block samples when CPS lights the blocks.
+        self.block_rate = deferred(settings) and settings.cps.mode == "cps"
+        self.reads = ("depth", "normal", "levels") if self.block_rate else ("depth", "normal")
+        return deferred(settings) and self.photons is not None
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
         if self.photons is None:
             return
         gmap = self._ensure_map()
@@ -101,21 +119,21 @@ class PhotonPass(RenderPass):
         s = self.settings
         if s.fused:  # the lighting shader gathers itself (Algorithm 1 needs a compute group)
             variant = "radius" if s.gather == "shared" else s.gather
-            frame.fused_photons = (gmap, self.gather.defines(gmap, variant, s.k))
+            res.put("photon_map", (gmap, self.gather.defines(gmap, variant, s.k)))
             self.eye_ms = [0.0, 0.0]
             return
-        size = frame.targets[0].size
+        size = res.targets[0].size
         self._ensure_targets(size)
-        levels = self.level_maps if self.block_rate else None
+        levels = res.get("levels") if self.block_rate else None
         reuse = s.stereo_reuse
-        for index, (eye, tgt) in enumerate(zip(frame.eyes, frame.targets)):
+        for index, (eye, tgt) in enumerate(zip(frame.eyes, res.targets)):
             start = self._mark()
             out = self.outputs[index]
             if self.block_rate:  # only block samples are written: no stale values elsewhere
                 out.write(self._clear_output)
             reuse_input = None
             if index == 1 and reuse:
-                reuse_input = self._scatter(frame, levels)
+                reuse_input = self._scatter(frame, res, levels)
             self.gather.gather_image(
                 gmap,
                 s.gather,
@@ -133,8 +151,8 @@ class PhotonPass(RenderPass):
                 moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
             )
             self.eye_ms[index] = self._mark() - start if self.measure else 0.0
-        frame.indirect = list(self.outputs)
-        frame.show_reuse = s.show_reuse and reuse
+        res.put("indirect", list(self.outputs))
+        res.put("show_reuse", s.show_reuse and reuse)
 
     def _mark(self) -> float:
         if not self.measure:
@@ -142,25 +160,28 @@ class PhotonPass(RenderPass):
         self.ctx.finish()
         return time.perf_counter() * 1e3
 
-    def _scatter(self, frame: FrameContext, levels: list[moderngl.Texture] | None):
+    def _scatter(self, frame: FrameContext, res: Resources, levels: list[moderngl.Texture] | None):
         """Left hit points claim the right-eye pixels that see them (photon_reuse.comp.glsl)."""
         assert self.winner is not None
         left, right = frame.eyes
-        tl, tr = frame.targets
+        tl, tr = res.targets
         self.winner.write(self._clear_winner)
         prog = self.shaders.compute("photon_reuse.comp.glsl", {"BLOCK_RATE": levels is not None})
-        tl.depth.use(1)
-        tr.depth.use(2)
-        prog["u_left_depth"].value, prog["u_right_depth"].value = 1, 2
+        bind_texture(prog, "left_depth", tl.depth)
+        bind_texture(prog, "right_depth", tr.depth)
         if levels is not None:
-            levels[0].use(4)
-            prog["u_levels"].value = 4
-        prog["u_left_inv_view_projection"].write(gl_bytes(left.inverse_view_projection))
-        prog["u_right_view_projection"].write(gl_bytes(right.view_projection))
-        prog["u_right_inv_view_projection"].write(gl_bytes(right.inverse_view_projection))
-        prog["u_size"].value = tl.size
-        prog["u_tolerance"].value = self.settings.reuse_tolerance
-        self.winner.bind_to_image(3, read=True, write=True)
+            bind_texture(prog, "levels", levels[0])
+        set_uniforms(
+            prog,
+            {
+                "u_left_inv_view_projection": left.inverse_view_projection,
+                "u_right_view_projection": right.view_projection,
+                "u_right_inv_view_projection": right.inverse_view_projection,
+                "u_size": tl.size,
+                "u_tolerance": self.settings.reuse_tolerance,
+            },
+        )
+        bind_image(self.winner, "winner", read=True, write=True)
         w, h = tl.size
         prog.run(-(-w // 8), -(-h // 8))
         self.ctx.memory_barrier(

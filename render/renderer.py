@@ -1,8 +1,10 @@
 """The one renderer, driven by the Qt widget and by the headless EGL host alike.
 
-A frame is the list of passes below; which run is decided by the settings tree
-(``render.path``, ``render.lighting``, ``render.overlay``). The host supplies the output
-framebuffer (the widget's default FBO, or an offscreen texture) and the frame's inputs.
+A frame is the pass list ``PASS_TYPES`` (one line per pass, in order). Each pass says whether
+it runs from the settings (``configure``) and which named resources it reads and writes
+(``render.pass_graph``); the renderer checks the enabled list once per configuration and runs
+it. The host supplies the output framebuffer (the widget's default FBO, or an offscreen
+texture) and the frame's inputs.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from app.photon_map import PhotonMap
 from app.scene import Scene
 from app.settings import Settings
 from app.tcr import finest_per_texture
+from render.constants import CPS_LEVELS
 from render.cps import (
     CpsFilterPass,
     CpsFrame,
@@ -27,66 +30,92 @@ from render.cps import (
     CpsTemporalPass,
 )
 from render.gpu_scene import GpuScene
+from render.pass_graph import FrameContext, RenderPass, Resources, check_graph
 from render.passes import (
+    CULL_MIN_LIGHTS,  # noqa: F401 - re-exported
     EmissivePass,
     EyeTargets,
     ForwardPass,
-    FrameContext,
     GBufferPass,
     LightCullPass,
     LightingPass,
     ObjectIdPass,
     OverlayPass,
     PresentPass,
-    RenderPass,
 )
 from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
-CULL_MIN_LIGHTS = 8  # light culling runs for scenes with more lights than this
+
+# The frame, in order. Adding a pass: its class (reads, writes, configure, execute) and a line.
+PASS_TYPES: tuple[type[RenderPass], ...] = (
+    GBufferPass,
+    LightCullPass,
+    CpsLevelPass,
+    PhotonPass,
+    LightingPass,
+    CpsLightingPass,
+    CpsFilterPass,
+    CpsTemporalPass,
+    CpsMaskPass,
+    EmissivePass,
+    ForwardPass,
+    PresentPass,
+    OverlayPass,
+)
+
+
+class _Pass:
+    """``renderer.<pass name>``: the pass of that name (for the hosts, panels and tests)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, renderer: Renderer | None, owner: type | None = None):
+        if renderer is None:
+            return self
+        return renderer.pass_named(self.name)
 
 
 class Renderer:
-    def __init__(self, ctx: moderngl.Context, settings: Settings) -> None:
+    gbuffer: GBufferPass = _Pass()  # type: ignore[assignment]
+    light_cull: LightCullPass = _Pass()  # type: ignore[assignment]
+    cps_levels: CpsLevelPass = _Pass()  # type: ignore[assignment]
+    photons: PhotonPass = _Pass()  # type: ignore[assignment]
+    lighting: LightingPass = _Pass()  # type: ignore[assignment]
+    cps_lighting: CpsLightingPass = _Pass()  # type: ignore[assignment]
+    cps_filter: CpsFilterPass = _Pass()  # type: ignore[assignment]
+    cps_temporal: CpsTemporalPass = _Pass()  # type: ignore[assignment]
+    cps_mask: CpsMaskPass = _Pass()  # type: ignore[assignment]
+    emissive: EmissivePass = _Pass()  # type: ignore[assignment]
+    forward: ForwardPass = _Pass()  # type: ignore[assignment]
+    present: PresentPass = _Pass()  # type: ignore[assignment]
+    overlay: OverlayPass = _Pass()  # type: ignore[assignment]
+
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        settings: Settings,
+        pass_types: tuple[type[RenderPass], ...] = PASS_TYPES,
+    ) -> None:
         self.ctx = ctx
         self.settings = settings
         self.shaders = ShaderLibrary(ctx)
-        self.gbuffer = GBufferPass(ctx, self.shaders)
-        self.lighting = LightingPass(ctx, self.shaders)
-        self.emissive = EmissivePass(ctx, self.shaders)
-        self.forward = ForwardPass(ctx, self.shaders)
-        self.present = PresentPass(ctx, self.shaders)
-        self.overlay = OverlayPass(ctx, self.shaders)
-        self.ids = ObjectIdPass(ctx, self.shaders)  # on request, not part of the frame
         self.cps = CpsState(ctx)
-        self.cps_levels = CpsLevelPass(ctx, self.shaders, self.cps)
-        self.cps_lighting = CpsLightingPass(ctx, self.shaders, self.cps)
-        self.cps_filter = CpsFilterPass(ctx, self.shaders, self.cps)
-        self.cps_temporal = CpsTemporalPass(ctx, self.shaders, self.cps)
-        self.cps_mask = CpsMaskPass(ctx, self.shaders, self.cps)
-        self.light_cull = LightCullPass(ctx, self.shaders)
-        self.photons = PhotonPass(ctx, self.shaders)
-        self.passes: list[RenderPass] = [
-            self.gbuffer,
-            self.light_cull,
-            self.cps_levels,
-            self.photons,
-            self.lighting,
-            self.cps_lighting,
-            self.cps_filter,
-            self.cps_temporal,
-            self.cps_mask,
-            self.emissive,
-            self.forward,
-            self.present,
-            self.overlay,
-        ]
+        self.resources = Resources(self.cps)
+        self.passes: list[RenderPass] = [t(ctx, self.shaders, self.resources) for t in pass_types]
+        self._by_name = {p.name: p for p in self.passes}
+        self.ids = ObjectIdPass(ctx, self.shaders, self.resources)  # on request only
+        self._checked: set[tuple] = set()  # configurations whose pass list was checked
         self.gpu_scene: GpuScene | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
         self._empty = GpuScene(ctx, Scene("empty", [], []))
+
+    def pass_named(self, name: str) -> RenderPass:
+        return self._by_name[name]
 
     # -- scene and targets ---------------------------------------------------------------------
     def set_scene(self, scene: Scene | None) -> None:
@@ -127,29 +156,15 @@ class Renderer:
         self.targets = [EyeTargets(self.ctx, width, height) for _ in range(2)]
 
     # -- the frame -----------------------------------------------------------------------------
-    def render(
+    def frame_context(
         self, frame: FrameInput, out: moderngl.Framebuffer, origin: tuple[int, int] = (0, 0)
-    ) -> None:
+    ) -> FrameContext:
+        """The frame's inputs as every pass sees them."""
         r = self.settings.render
-        eye = frame.eyes[0]
-        self._ensure_targets(eye.width, eye.height)
-        deferred = r.path == "deferred"
-        self.gbuffer.enabled = self.lighting.enabled = self.emissive.enabled = deferred
-        self.forward.enabled = not deferred
-        self.lighting.stage = r.lighting
-        cps = self._configure_cps(frame, deferred)
-        scene_lights = len((self.gpu_scene or self._empty).lights)
-        # With a handful of lights the culling pass costs more than it saves.
-        self.light_cull.enabled = deferred and r.light_culling and scene_lights > CULL_MIN_LIGHTS
-        self.photons.settings = self.settings.photons
-        self.photons.enabled = deferred and self.photons.photons is not None
-        self.photons.block_rate = self.cps_lighting.enabled
-        self.photons.level_maps = [e.levels for e in self.cps.eyes]
-        self.overlay.enabled = True
-        self.overlay.show_text = r.overlay
-        ctx = FrameContext(
+        s = self.settings.cps
+        caps = frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
+        return FrameContext(
             eyes=frame.eyes,
-            targets=self.targets,
             scene=self.gpu_scene or self._empty,
             light_scale=r.brightness,
             ambient=r.ambient * r.brightness,
@@ -161,11 +176,30 @@ class Renderer:
             levels=frame.levels if self.settings.tcr.enabled else None,
             tcr_mode=self.settings.tcr.mode,
             tint=self.settings.tcr.tint,
-            culled=self.light_cull.enabled,
+            cps=CpsFrame(s, caps, self.frames, list(frame.edge_hits or [])),
+            edge_hits=frame.edge_hits,
         )
-        if cps.visualize and self.cps_levels.enabled:
-            ctx.level_maps = [e.levels for e in self.cps.eyes]
-            ctx.markers = _project_hits(frame)
+
+    def configure(self, ctx: FrameContext) -> list[RenderPass]:
+        """Ask every pass whether it runs (its own rule) and check the enabled list's reads
+        (once per configuration); the enabled passes, in order."""
+        for p in self.passes:
+            p.enabled = bool(p.configure(self.settings, ctx.scene, ctx))
+        enabled = [p for p in self.passes if p.enabled]
+        key = tuple((p.name, p.reads, p.writes) for p in enabled)
+        if key not in self._checked:
+            check_graph(enabled)
+            self._checked.add(key)
+        return enabled
+
+    def render(
+        self, frame: FrameInput, out: moderngl.Framebuffer, origin: tuple[int, int] = (0, 0)
+    ) -> None:
+        eye = frame.eyes[0]
+        self._ensure_targets(eye.width, eye.height)
+        self.cps.ensure(self.targets)
+        ctx = self.frame_context(frame, out, origin)
+        enabled = self.configure(ctx)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
             scene.streamer.update(
@@ -176,34 +210,18 @@ class Renderer:
         else:
             ctx.levels = None
             scene.streamer.update([0] * len(scene.streamer.resident))
+        res = self.resources
+        res.begin_frame(self.targets)
         for p in self.passes:
+            if not p.enabled:
+                p.last_ms = 0.0
+        for p in enabled:
             try:
                 p.run(ctx)
             except Exception as exc:  # noqa: BLE001 - one bad pass must not kill the app
                 self._log_once(p.name, exc)
+            res.wrote(p.writes)
         self.frames += 1
-
-    def _configure_cps(self, frame: FrameInput, deferred: bool):
-        """Which CPS passes run this frame (CPS and the masks need the deferred path)."""
-        s = self.settings.cps
-        mode = s.mode if deferred else "none"
-        self.cps.ensure(self.targets)
-        caps = frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
-        self.cps.frame = CpsFrame(s, caps, self.frames, list(frame.edge_hits or []))
-        self.cps.mode = mode
-        coarse = mode == "cps"
-        self.cps_levels.enabled = deferred and (coarse or s.visualize)
-        self.cps.level_maps_valid = self.cps.level_maps_valid and self.cps_levels.enabled
-        self.lighting.enabled = deferred and not coarse
-        self.cps_lighting.enabled = self.cps_filter.enabled = coarse
-        self.cps_lighting.stage = self.settings.render.lighting
-        self.cps_lighting.dispatch = s.dispatch
-        self.cps_filter.from_atlas = self.settings.render.lighting == "fragment"
-        self.cps_temporal.enabled = coarse and s.temporal
-        if not self.cps_temporal.enabled:
-            self.cps_temporal.reset()
-        self.cps_mask.enabled = mode in ("black-mask", "blur-mask")
-        return s
 
     def cps_stats(self) -> dict:
         """Share of pixels per detail level and lighting evaluations, from the last frame's
@@ -213,8 +231,8 @@ class Renderer:
         if not maps:
             return {}
         levels = np.concatenate([m.ravel() for m in maps])
-        counts = np.bincount(levels, minlength=6)[:6]
-        blocks = float(np.sum(counts / 4.0 ** np.arange(6)))
+        counts = np.bincount(levels, minlength=CPS_LEVELS)[:CPS_LEVELS]
+        blocks = float(np.sum(counts / 4.0 ** np.arange(CPS_LEVELS)))
         return {
             "level_share": (counts / max(1, levels.size)).tolist(),
             "shaded_samples": int(round(blocks)) if self.cps_lighting.enabled else int(levels.size),
@@ -246,18 +264,8 @@ class Renderer:
         """Mesh index under each pixel of each eye ((H, W) int32, row 0 at the top; -1: none)."""
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
-        ctx = FrameContext(
-            eyes=frame.eyes,
-            targets=self.targets,
-            scene=self.gpu_scene or self._empty,
-            light_scale=0.0,
-            ambient=0.0,
-            exposure=1.0,
-            out=self.ctx.screen,
-            out_origin=(0, 0),
-            gaze=frame.gaze,
-            gaze_fixed=frame.gaze_fixed,
-        )
+        ctx = self.frame_context(frame, self.ctx.screen)
+        self.resources.begin_frame(self.targets)
         self.ids.run(ctx)
         return self.ids.result
 
@@ -309,20 +317,3 @@ class Renderer:
             self.gpu_scene.release()
         self._empty.release()
         self.shaders.release()
-
-
-def _project_hits(frame: FrameInput) -> list[list[tuple[int, int]]]:
-    """Edge-ray hit points as pixels of each eye (from the bottom-left); behind the eye: none."""
-    out: list[list[tuple[int, int]]] = []
-    for index, eye in enumerate(frame.eyes):
-        points: list[tuple[int, int]] = []
-        hits = frame.edge_hits[index] if frame.edge_hits and index < len(frame.edge_hits) else None
-        if hits is not None and len(hits):
-            h = np.asarray(hits, np.float64).reshape(-1, 3)
-            clip = np.c_[h, np.ones(len(h))] @ eye.view_projection.T
-            ok = clip[:, 3] > 1e-9
-            ndc = clip[ok, :2] / clip[ok, 3:4]
-            for x, y in ndc:
-                points.append((int((x * 0.5 + 0.5) * eye.width), int((y * 0.5 + 0.5) * eye.height)))
-        out.append(points)
-    return out

@@ -1,9 +1,11 @@
 """The one shader loader: GLSL files from ``render/shaders`` as package data.
 
-It checks ``#version``, injects ``#define``s after it, resolves ``#include "file"`` (each file
-once per program), and keeps a map from combined-source line to (file, line) so a compile error
-names the file and line the author wrote. Mesa's ``#line`` handling has been unreliable, so the
-map is ours rather than the driver's. Programs are cached per context.
+It checks ``#version``, injects ``#define``s after it (the program's own and, from
+``ShaderLibrary``, the shared constants of ``render.constants.SHADER_DEFINES``), resolves
+``#include "file"`` (each file once per program), and keeps a map from combined-source line to
+(file, line) so a compile error names the file and line the author wrote. Mesa's ``#line``
+handling has been unreliable, so the map is ours rather than the driver's. Programs are cached
+per context.
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ from dataclasses import dataclass
 from importlib import resources
 
 import moderngl
+
+from render.constants import SHADER_DEFINES
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 _VERSION = re.compile(r"^\s*#\s*version\s+(\d+)")
@@ -106,8 +110,18 @@ def explain(log: str, sources: dict[str, Source]) -> str:
     return "\n".join(lines)
 
 
+def with_constants(defines: dict[str, object] | None) -> dict[str, object]:
+    """A program's defines plus the shared constants (which a program may not redefine)."""
+    own = dict(defines or {})
+    clash = sorted(set(own) & set(SHADER_DEFINES))
+    if clash:
+        names = ", ".join(clash)
+        raise ShaderError(f"{names}: shared constants (render/constants.py), not variants")
+    return {**SHADER_DEFINES, **own}
+
+
 class ShaderLibrary:
-    """Compiles and caches programs for one moderngl context."""
+    """Compiles and caches programs for one moderngl context (with the shared constants)."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
@@ -118,8 +132,8 @@ class ShaderLibrary:
     ) -> moderngl.Program:
         key = ("program", vertex, fragment, tuple(sorted((defines or {}).items())))
         if key not in self._cache:
-            vs = assemble(vertex, defines)
-            fs = assemble(fragment, defines)
+            vs = assemble(vertex, with_constants(defines))
+            fs = assemble(fragment, with_constants(defines))
             try:
                 self._cache[key] = self.ctx.program(vertex_shader=vs.text, fragment_shader=fs.text)
             except moderngl.Error as exc:
@@ -142,7 +156,7 @@ class ShaderLibrary:
     ) -> moderngl.ComputeShader:
         key = ("compute", name, tuple(sorted((defines or {}).items())))
         if key not in self._cache:
-            src = assemble(name, defines)
+            src = assemble(name, with_constants(defines))
             try:
                 self._cache[key] = self.ctx.compute_shader(src.text)
             except moderngl.Error as exc:

@@ -11,7 +11,7 @@
 uniform ivec2 u_size;
 #ifdef FROM_ATLAS
 uniform sampler2D u_atlas;
-uniform ivec2 u_atlas_offsets[6];
+uniform ivec2 u_atlas_offsets[CPS_LEVELS];
 vec3 block_colour(ivec2 q) {
     int s = level_at(q);
     return texelFetch(u_atlas, u_atlas_offsets[s] + (q >> s), 0).rgb;

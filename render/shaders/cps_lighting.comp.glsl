@@ -7,7 +7,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #include "deferred.glsl"
 #include "cps_common.glsl"
 
-layout(rgba16f, binding = 0) writeonly uniform image2D u_out;
+layout(rgba16f, binding = IMAGE_UNIT_OUT) writeonly uniform image2D u_out;
 uniform int u_level;  // MULTI_LEVEL only
 
 void fill_block(ivec2 origin, int s) {

@@ -19,8 +19,8 @@ uniform mat4 u_inv_projection;   // clip -> view
 uniform ivec2 u_size;            // eye viewport, pixels
 uniform ivec2 u_tiles;
 
-layout(r16ui, binding = 1) writeonly uniform uimage2D u_counts;
-layout(r16ui, binding = 2) writeonly uniform uimage2D u_lists;
+layout(r16ui, binding = IMAGE_UNIT_COUNTS) writeonly uniform uimage2D u_counts;
+layout(r16ui, binding = IMAGE_UNIT_LISTS) writeonly uniform uimage2D u_lists;
 
 vec3 view_point(vec2 pixel, float depth) {
     vec2 ndc = pixel / vec2(u_size) * 2.0 - 1.0;

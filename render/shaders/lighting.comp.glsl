@@ -3,7 +3,7 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 #include "deferred.glsl"
 
-layout(rgba16f, binding = 0) writeonly uniform image2D u_out;
+layout(rgba16f, binding = IMAGE_UNIT_OUT) writeonly uniform image2D u_out;
 
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);

@@ -16,10 +16,10 @@ uniform sampler2D u_gb_normal;
 uniform sampler2D u_gb_depth;
 uniform mat4 u_inv_view_projection;
 uniform ivec2 u_size;
-layout(rgba32f, binding = 0) writeonly uniform image2D u_out;
+layout(rgba32f, binding = IMAGE_UNIT_OUT) writeonly uniform image2D u_out;
 #ifdef REUSE
-// 0xFFFFFFFF: none; else y * W + x of the left-eye pixel whose hit point lands here.
-layout(r32ui, binding = 1) readonly uniform uimage2D u_reuse_winner;
+// PM_NO_WINNER: none; else y * W + x of the left-eye pixel whose hit point lands here.
+layout(r32ui, binding = IMAGE_UNIT_REUSE_WINNER) readonly uniform uimage2D u_reuse_winner;
 uniform sampler2D u_left_result;
 #endif
 
@@ -44,7 +44,7 @@ void main() {
 #ifdef REUSE
         uint winner = imageLoad(u_reuse_winner, p).r;
         uint pixels = uint(u_size.x) * uint(u_size.y);
-        if (depth < 1.0 && winner != 0xFFFFFFFFu && winner < pixels) {
+        if (depth < 1.0 && winner != PM_NO_WINNER && winner < pixels) {
             ivec2 src = ivec2(int(winner % uint(u_size.x)), int(winner / uint(u_size.x)));
             imageStore(u_out, p, vec4(texelFetch(u_left_result, src, 0).rgb, 2.0));
             reused = true;

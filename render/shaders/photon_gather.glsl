@@ -33,8 +33,8 @@
 #ifndef HEAP_K
 #define HEAP_K 32
 #endif
-#if HEAP_K < 1 || HEAP_K > 64
-#error "photon_gather.glsl: HEAP_K must be 1..64"
+#if HEAP_K < 1 || HEAP_K > PM_MAX_K
+#error "photon_gather.glsl: HEAP_K must be 1..PM_MAX_K"
 #endif
 #endif
 
@@ -46,7 +46,7 @@
 //            component, ~9x slower in this loop.
 //   PM_SSBO  the SSBO at binding 0 (same bytes).
 // The power half is only fetched for photons that count.
-#define PM_TEX_SHIFT 12  // textures are 1 << PM_TEX_SHIFT texels wide (photon_gather.TEX_WIDTH)
+// PM_TEX_SHIFT (injected, render/constants.py): textures are 1 << PM_TEX_SHIFT texels wide.
 #define PM_TEXEL(j) ivec2(int(j) & ((1 << PM_TEX_SHIFT) - 1), int(j) >> PM_TEX_SHIFT)
 layout(std430, binding = 0) readonly buffer PhotonRecords { uvec4 pm_records[]; };
 // GRID: prefix sum over cells (X*Y*Z + 1 entries): a cell's photons are [start[h], start[h+1]).
@@ -290,7 +290,7 @@ vec3 gather_irradiance(vec3 P, vec3 N) {
 // Algorithm 1. Every invocation of the (64-wide) group must call this in uniform control flow;
 // `has_query` says whether it has a query (background / out-of-image / reused invocations pass
 // false and still help load photons).
-const uint PM_GROUP = 64u;
+// PM_GROUP (injected, render/constants.py): invocations per work group.
 shared uvec4 pm_shared[2u * PM_GROUP];
 shared uint pm_cell_min;
 shared uint pm_cell_max;

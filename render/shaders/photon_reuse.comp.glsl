@@ -18,7 +18,7 @@ uniform mat4 u_right_view_projection;
 uniform mat4 u_right_inv_view_projection;
 uniform ivec2 u_size;
 uniform float u_tolerance;
-layout(r32ui, binding = 3) uniform uimage2D u_winner;
+layout(r32ui, binding = IMAGE_UNIT_WINNER) uniform uimage2D u_winner;
 
 vec3 world_at(sampler2D depth_tex, mat4 inv_vp, ivec2 p, out bool background) {
     float depth = texelFetch(depth_tex, p, 0).r;

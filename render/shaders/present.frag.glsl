@@ -10,11 +10,9 @@ out vec4 out_color;
 
 #ifdef VISUALIZE
 // CPS detail visualisation: finest level unpainted, then blue, cyan, green, yellow, red
-// (render/passes.py CPS_LEVEL_COLOURS).
+// (CPS_LEVELS and CPS_LEVEL_COLOURS injected from render/constants.py).
 uniform usampler2D u_levels;  // half-resolution level map
-const vec3 LEVEL_COLOURS[6] = vec3[6](vec3(1.0), vec3(0.15, 0.35, 1.0), vec3(0.0, 0.9, 0.9),
-                                      vec3(0.1, 0.85, 0.1), vec3(1.0, 0.95, 0.0),
-                                      vec3(1.0, 0.1, 0.1));
+const vec3 LEVEL_COLOURS[CPS_LEVELS] = vec3[CPS_LEVELS](CPS_LEVEL_COLOURS);
 #endif
 
 #ifdef SHOW_REUSE
@@ -39,7 +37,7 @@ void main() {
     vec3 c = srgb_encode(tonemap(hdr * u_exposure));
 #ifdef VISUALIZE
     int s = int(texelFetch(u_levels, q >> 1, 0).r);
-    if (s > 0) c = mix(c, LEVEL_COLOURS[min(s, 5)], 0.5);
+    if (s > 0) c = mix(c, LEVEL_COLOURS[min(s, CPS_MAX_LEVEL)], 0.5);
 #endif
 #ifdef SHOW_REUSE
     if (u_paint_reuse == 1) {

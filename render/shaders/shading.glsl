@@ -4,9 +4,7 @@
 
 // A uniform block, not a storage buffer: on llvmpipe, SSBO loads in this loop cost 2.5x more
 // (measured: 161 ms vs 65 ms for 4 lights at 2x640x720).
-#ifndef MAX_LIGHTS
-#define MAX_LIGHTS 1024
-#endif
+// MAX_LIGHTS: injected by the shader loader (render/constants.py).
 layout(std140, binding = 0) uniform Lights {
     vec4 light_position_range[MAX_LIGHTS];   // xyz world position, w range in metres
     vec4 light_color_intensity[MAX_LIGHTS];  // rgb linear colour, a intensity

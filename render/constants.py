@@ -1,0 +1,117 @@
+"""Constants shared by the Python side of the renderer and its shaders: one source.
+
+``ShaderLibrary`` injects ``SHADER_DEFINES`` as ``#define NAME value`` after ``#version`` into
+every program it compiles, so no GLSL file defines these itself (``tests/test_constants.py``
+fails if one does). Python code imports the names from here.
+"""
+
+from __future__ import annotations
+
+from app.cps import MAX_LEVEL
+
+# Lights: the uniform block holds this many (std140: 32 KiB of the 64 KiB block limit).
+MAX_LIGHTS = 1024
+# Tiled light culling: tile edge in pixels, list length per tile, and the count that marks an
+# overflowing tile ("evaluate every light").
+LIGHT_TILE = 16
+MAX_PER_TILE = 128
+ALL_LIGHTS = 65535
+
+# Coarse pixel shading: detail levels 0..MAX_LEVEL (app/cps.py) and the visualisation legend
+# (paper Fig. 2): finest unpainted, then blue, cyan, green, yellow, red.
+CPS_LEVELS = MAX_LEVEL + 1
+CPS_LEVEL_COLOURS = (
+    (1.0, 1.0, 1.0),
+    (0.15, 0.35, 1.0),
+    (0.0, 0.9, 0.9),
+    (0.1, 0.85, 0.1),
+    (1.0, 0.95, 0.0),
+    (1.0, 0.1, 0.1),
+)
+# Level legend for the TCR tint (Python only, a uniform): level 0 unpainted, then blue, cyan,
+# green, yellow, orange, red.
+LEVEL_TINTS = (
+    (1.0, 1.0, 1.0),
+    (0.15, 0.35, 1.0),
+    (0.0, 0.9, 0.9),
+    (0.1, 0.85, 0.1),
+    (1.0, 0.95, 0.0),
+    (1.0, 0.55, 0.0),
+    (1.0, 0.1, 0.1),
+)
+
+# Photon gather: record / start textures are 1 << PM_TEX_SHIFT texels wide; work groups of
+# PM_GROUP invocations (Algorithm 1 relies on it); heaps of at most PM_MAX_K entries; the
+# reuse winner's "no left pixel lands here".
+PM_TEX_SHIFT = 12
+PM_GROUP = 64
+PM_MAX_K = 64
+PM_NO_WINNER = 0xFFFFFFFF
+
+# Image units, keyed by the image uniform's name without "u_": the shaders declare
+# ``layout(binding = IMAGE_UNIT_<NAME>)``, Python binds with ``render.pass_graph.bind_image``.
+# One unit per name, so no two images of any program variant can meet on a unit.
+IMAGE_UNITS = {
+    "out": 0,  # the compute passes' output image
+    "counts": 1,  # light culling: per-tile counts
+    "lists": 2,  # light culling: per-tile lists
+    "winner": 3,  # photon reuse scatter: the winners (read-write)
+    "reuse_winner": 4,  # photon gather: the right eye's winners (read only)
+}
+
+# Texture units, keyed by the sampler uniform's name without "u_"; every sampler bind goes
+# through ``render.pass_graph.bind_texture`` with this table. One unit per name (GL 4.3
+# guarantees 80 combined units), so no two samplers of any program variant share one.
+TEXTURE_UNITS = {
+    name: unit
+    for unit, name in enumerate(
+        (
+            "albedo",  # a mesh's albedo texture (geometry passes)
+            "gb_albedo",
+            "gb_normal",
+            "gb_depth",
+            "levels",
+            "atlas",
+            "blocks",
+            "lit",
+            "current",
+            "history",
+            "tile_counts",
+            "tile_lists",
+            "indirect",
+            "pm_records",
+            "pm_starts",
+            "left_depth",
+            "right_depth",
+            "left_result",
+            "depth",
+            "bounds",
+            "eye_color",
+            "text",
+            "heat",
+        )
+    )
+}
+
+
+def _glsl(value: object) -> str:
+    if isinstance(value, tuple):
+        return "vec3(" + ", ".join(repr(float(v)) for v in value) + ")"
+    return str(value)
+
+
+# What every shader sees (values as GLSL text).
+SHADER_DEFINES: dict[str, object] = {
+    "MAX_LIGHTS": MAX_LIGHTS,
+    "LIGHT_TILE": LIGHT_TILE,
+    "MAX_PER_TILE": MAX_PER_TILE,
+    "ALL_LIGHTS": f"{ALL_LIGHTS}u",
+    "CPS_LEVELS": CPS_LEVELS,
+    "CPS_MAX_LEVEL": MAX_LEVEL,
+    "CPS_LEVEL_COLOURS": ", ".join(_glsl(c) for c in CPS_LEVEL_COLOURS),
+    "PM_TEX_SHIFT": PM_TEX_SHIFT,
+    "PM_GROUP": f"{PM_GROUP}u",
+    "PM_MAX_K": PM_MAX_K,
+    "PM_NO_WINNER": f"0x{PM_NO_WINNER:X}u",
+    **{f"IMAGE_UNIT_{k.upper()}": v for k, v in IMAGE_UNITS.items()},
+}

@@ -1,0 +1,251 @@
+"""The pass contract: what a render pass declares, the frame's resource table, and the checks.
+
+A pass (``RenderPass``) names the resources it ``reads`` and ``writes`` (per eye unless noted,
+see ``RESOURCES``) and owns its on/off rule, ``configure(settings, scene, frame) -> bool``.
+``optional_reads`` are used when an earlier pass of this configuration writes them (the tile
+light lists, the photons' indirect light, the level map for the visualisation), otherwise the
+pass runs its variant without them. The renderer asks every pass of its list, checks the
+enabled ones once per configuration (``check_graph``: every read has an earlier writer, or a
+``PassGraphError`` names the pass and the resource), and runs them with the frame's inputs
+(``FrameContext``) and the ``Resources`` table.
+
+Textures are bound by sampler name with the one unit table (``render.constants.TEXTURE_UNITS``,
+``bind_texture``), images likewise (``IMAGE_UNITS``, ``bind_image``); ``set_uniforms`` writes
+uniforms a shader must have (a missing one is an error) and, separately, ones a variant may
+drop (the GLSL compiler removes uniforms a variant does not read).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import moderngl
+import numpy as np
+
+from app.camera import EyeView
+from render.constants import IMAGE_UNITS, TEXTURE_UNITS
+from render.gpu_scene import GpuScene
+from render.shaders import ShaderLibrary
+
+# The named resources passes hand each other (the contract's vocabulary).
+RESOURCES = {
+    "depth": "per eye: G-buffer / forward depth",
+    "normal": "per eye: world normal + roughness",
+    "albedo": "per eye: albedo + metallic",
+    "tile_lists": "per eye: per-tile light counts and lists (light culling)",
+    "levels": "per eye: CPS detail level map (half resolution)",
+    "blocks": "per eye: CPS lighting per block (atlas or full-size blocks image)",
+    "filtered": "per eye: CPS reconstruction before the temporal filter",
+    "history": "per eye: the temporal filter's previous frame",
+    "indirect": "per eye: photon irradiance (rgba32f)",
+    "photon_map": "the photon map and gather defines the lighting gathers itself (fused)",
+    "show_reuse": "flag: paint the right eye's reused / gathered indirect pixels",
+    "hdr": "per eye: linear HDR colour",
+    "out": "the host's framebuffer: both eyes tone-mapped side by side",
+}
+
+
+class PassGraphError(RuntimeError):
+    """A pass list whose reads are not all written by an earlier pass (or unknown names)."""
+
+
+class UniformError(KeyError):
+    """A uniform the shader must have is not in the program."""
+
+
+@dataclass
+class FrameContext:
+    """The frame's inputs, the same for every pass (what passes make goes to ``Resources``)."""
+
+    eyes: list[EyeView]
+    scene: GpuScene
+    light_scale: float
+    ambient: float
+    exposure: float
+    out: moderngl.Framebuffer
+    out_origin: tuple[int, int]  # lower-left of the stereo view inside ``out``
+    gaze: tuple[float, float]
+    gaze_fixed: bool
+    levels: list[int] | None = None  # TCR level per mesh (None: full quality)
+    tcr_mode: str = "clamp"
+    tint: bool = False
+    cps: Any = None  # render.cps.CpsFrame: caps, frame index, edge-ray hits
+    edge_hits: Sequence | None = None  # world points per eye, drawn with the level map
+
+
+# Resource name -> where the renderer's targets keep it: (table, attribute).
+_TARGET_ATTRS = {
+    "depth": ("targets", "depth"),
+    "normal": ("targets", "normal"),
+    "albedo": ("targets", "albedo"),
+    "hdr": ("targets", "color"),
+    "tile_lists": ("targets", "tile_lists"),
+    "levels": ("cps", "levels"),
+    "filtered": ("cps", "filtered"),
+}
+
+
+class Resources:
+    """The frame's resource table: each eye's targets (``EyeTargets``, CPS targets) by name,
+    plus what passes ``put`` this frame. ``get`` answers only for names an earlier pass of
+    this frame writes (so a pass sees the tile lists only when culling ran)."""
+
+    def __init__(self, cps_state: Any) -> None:
+        self.cps_state = cps_state  # render.cps.CpsState: the CPS targets and their state
+        self.targets: list = []  # render.passes.EyeTargets per eye
+        self._written: set[str] = set()
+        self._values: dict[str, Any] = {}
+
+    @property
+    def cps(self) -> list:
+        return self.cps_state.eyes
+
+    def begin_frame(self, targets: list) -> None:
+        self.targets = targets
+        self._written.clear()
+        self._values.clear()
+
+    def wrote(self, names: Iterable[str]) -> None:
+        self._written.update(names)
+
+    def put(self, name: str, value: Any) -> None:
+        """A value a pass made this frame (``name`` must be among its writes)."""
+        self._values[name] = value
+
+    def written(self, name: str) -> bool:
+        return name in self._written
+
+    def get(self, name: str, default: Any = None) -> Any:
+        """Per-eye list (or value) of ``name`` if an earlier pass wrote it this frame."""
+        if name not in self._written:
+            return default
+        if name in self._values:
+            return self._values[name]
+        where = _TARGET_ATTRS.get(name)
+        if where is None:
+            return default
+        table, attr = where
+        return [getattr(t, attr) for t in getattr(self, table)]
+
+    def eye(self, name: str, index: int) -> Any:
+        """One eye's texture of ``name``, whether or not written this frame (a pass's own)."""
+        table, attr = _TARGET_ATTRS[name]
+        return getattr(getattr(self, table)[index], attr)
+
+
+def bind_texture(
+    prog: moderngl.Program | moderngl.ComputeShader,
+    name: str,
+    tex: moderngl.Texture,
+    optional: bool = False,
+) -> bool:
+    """Bind ``tex`` to TEXTURE_UNITS[name] and point sampler ``u_<name>`` at it. ``optional``:
+    the variant may not have the sampler (then nothing is bound and False is returned)."""
+    uniform = "u_" + name
+    if uniform not in prog:
+        if optional:
+            return False
+        raise UniformError(f"shader has no sampler {uniform}")
+    unit = TEXTURE_UNITS[name]
+    tex.use(unit)
+    prog[uniform].value = unit
+    return True
+
+
+def bind_image(tex: moderngl.Texture, name: str, read: bool = False, write: bool = True) -> None:
+    """Bind ``tex`` to image unit IMAGE_UNITS[name] (the shader's IMAGE_UNIT_<NAME>)."""
+    tex.bind_to_image(IMAGE_UNITS[name], read=read, write=write)
+
+
+def set_uniforms(
+    prog: moderngl.Program | moderngl.ComputeShader,
+    values: dict[str, Any],
+    optional: dict[str, Any] | None = None,
+) -> None:
+    """Write ``values`` (each must be in the shader) and ``optional`` (skipped where this
+    variant does not have it). bytes and 4x4 matrices are written, the rest set as values."""
+    for group, required in ((values, True), (optional or {}, False)):
+        for name, value in group.items():
+            if name not in prog:
+                if required:
+                    raise UniformError(f"shader has no uniform {name}")
+                continue
+            if isinstance(value, np.ndarray) and value.shape == (4, 4):
+                prog[name].write(np.ascontiguousarray(value.T, dtype=np.float32).tobytes())
+            elif isinstance(value, bytes):
+                prog[name].write(value)
+            else:
+                prog[name].value = value
+
+
+class RenderPass:
+    """One pass: its contract (``name``, ``reads``, ``optional_reads``, ``writes``), its on/off
+    rule (``configure``) and its work (``execute``), timed on the GPU (``last_ms``)."""
+
+    name = "pass"
+    reads: tuple[str, ...] = ()
+    optional_reads: tuple[str, ...] = ()
+    writes: tuple[str, ...] = ()
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        self.ctx = ctx
+        self.shaders = shaders
+        self.res = res
+        self.enabled = True  # the renderer sets it from configure()
+        self._query = ctx.query(time=True)
+        self.last_ms = 0.0
+        self.samples = 0  # shaded samples in the last frame, where the pass knows them
+        self._fullscreen_vaos: dict[int, moderngl.VertexArray] = {}
+
+    def configure(self, settings: Any, scene: GpuScene, frame: FrameContext) -> bool:
+        """Whether this pass runs this frame (and its variant); the pass's own rule."""
+        return True
+
+    def run(self, frame: FrameContext) -> None:
+        if not self.enabled:
+            self.last_ms = 0.0
+            return
+        with self._query:
+            self.execute(frame, self.res)
+        self.last_ms = self._query.elapsed / 1e6
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        raise NotImplementedError  # each pass defines its work
+
+    def fullscreen(self, prog: moderngl.Program) -> None:
+        """Draw one viewport-covering triangle with ``prog`` (no vertex buffer)."""
+        vao = self._fullscreen_vaos.get(prog.glo)
+        if vao is None:
+            vao = self._fullscreen_vaos[prog.glo] = self.ctx.vertex_array(prog, [])
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+    def release(self) -> None:
+        release_query(self._query)
+        for vao in self._fullscreen_vaos.values():
+            vao.release()
+        self._fullscreen_vaos.clear()
+
+
+def check_graph(passes: Sequence[RenderPass]) -> None:
+    """Every read of every pass has an earlier writer in ``passes`` (and every name is known);
+    else a PassGraphError naming the pass and the resource."""
+    written: set[str] = set()
+    for p in passes:
+        for name in (*p.reads, *p.optional_reads, *p.writes):
+            if name not in RESOURCES:
+                raise PassGraphError(f"pass '{p.name}' names unknown resource '{name}'")
+        for name in p.reads:
+            if name not in written:
+                raise PassGraphError(
+                    f"pass '{p.name}' reads '{name}' but no earlier pass writes it"
+                )
+        written.update(p.writes)
+
+
+def release_query(query: moderngl.Query) -> None:
+    # moderngl 5.x exposes no Query.release(); its glo is freed with the context.
+    release = getattr(query, "release", None) or getattr(query.mglo, "release", None)
+    if release is not None:
+        release()
