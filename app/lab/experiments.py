@@ -2,7 +2,7 @@
 
 Each run is one ``vrpreview bench`` with its settings; every result is written as its own
 JSON file (the command that makes it again is stored in it) and the tables are printed at the
-end through :mod:`app.report`. Runs go one after another: timings of runs that overlap on a
+end through :mod:`app.lab.report`. Runs go one after another: timings of runs that overlap on a
 2-core machine mean nothing.
 """
 
@@ -13,9 +13,9 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.bench import bench, parse_size
 from app.fileio import atomic_write_json
-from app.report import report
+from app.lab.bench import bench, parse_size
+from app.lab.report import report
 from app.scenes import resolve_path
 from app.settings import Settings
 
@@ -170,8 +170,8 @@ def cps_runs() -> list[Run]:
 
 def photon_runs() -> list[Run]:
     """The photon-mapping paper's Tables 1, 2, 4 and 5 on the showroom walkthrough: 3 frames
-    spread over the walk (every 200th), both eyes at 640x720 (see app.photon_bench)."""
-    from app.photon_bench import table_runs
+    spread over the walk (every 200th), both eyes at 640x720 (see app.lab.photon_bench)."""
+    from app.lab.photon_bench import table_runs
 
     return [
         Run(name, "showroom", "showroom_walkthrough", sets, frames=3, stride=200, warmup=1)
@@ -215,7 +215,7 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
     if which == "photons":
         import json
 
-        from app.photon_bench import tables, write_peer
+        from app.lab.photon_bench import tables, write_peer
 
         # Every run in the folder, so a table can be completed by later --only runs.
         results = {

@@ -4,7 +4,7 @@ frame-time-against-error plot with the Pareto front marked.
 
 Resumable: results.json is rewritten after every run, and a run already in it is not run again,
 so an interrupted study picks up where it stopped. Errors are computed on display values (what
-the user sees) by :func:`app.bench.bench`.
+the user sees) by :func:`app.lab.bench.bench`.
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from app.bench import bench, parse_size
 from app.fileio import atomic_write_json, atomic_write_png, atomic_write_text
-from app.report import markdown
+from app.lab.bench import bench, parse_size
+from app.lab.report import markdown
 from app.scenes import resolve_path
 from app.settings import Settings
 
@@ -78,7 +78,7 @@ def _photon_matrix() -> Matrix:
     """Photons emitted x gather radius (and the gather at block rate under CPS), each against
     the converged photon map (app.quality.full_quality): the speed/accuracy curve of the
     indirect light."""
-    from app.photon_bench import COUNTS, radius_m
+    from app.lab.photon_bench import COUNTS, radius_m
 
     base = ("photons.enabled=on", "photons.stereo_reuse=true")
     runs: list[tuple[str, tuple[str, ...]]] = [

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.report import markdown
+from app.lab.report import markdown
 
 PAPER_UNIT_M = 2.0
 COUNTS = {"512^2": 1 << 18, "256^2": 1 << 16, "128^2": 1 << 14}
@@ -187,9 +187,9 @@ def peer_comparison(
     GPU finished), the cKDTree build, and its radius query plus the sums (all cores). Also the
     largest relative difference between the two estimates and the share of visited photons
     that lie within r."""
-    from app.bench import _open
     from app.hashgrid import HashGrid
-    from app.photon_ref import build_tree, estimate_radius
+    from app.lab.bench import _open
+    from app.lab.photon_ref import build_tree, estimate_radius
     from app.settings import Settings
     from render.photon_gather import GpuPhotonMap
 
