@@ -14,7 +14,7 @@ from app.lab.study import FULL, Matrix, pareto, run_study
 
 
 def tiny() -> Matrix:
-    return Matrix(
+    return Matrix.of(
         "showroom",
         "showroom_walkthrough",
         [

@@ -215,25 +215,25 @@ def _run(
             args.compare_every,
             args.stride,
         )
-        from app.fileio import atomic_write_json
+        from app.lab.results import write_json
 
-        atomic_write_json(args.out, result)
-        passes = ", ".join(f"{k} {v['median_ms']:.1f}" for k, v in result["passes"].items())
+        write_json(args.out, result)
+        passes = ", ".join(f"{k} {v.median_ms:.1f}" for k, v in result.passes.items())
         print(
-            f"{result['scene']['name']} {args.size}: {result['fps_median']:.1f} fps, "
-            f"frame {result['frame_ms']['median']:.1f} ms median; passes (ms) {passes}"
+            f"{result.scene['name']} {args.size}: {result.fps_median:.1f} fps, "
+            f"frame {result.frame_ms.median:.1f} ms median; passes (ms) {passes}"
         )
-        print(f"textures resident: {result['texture_resident_bytes'] / 1e6:.2f} MB (median)")
-        err = result.get("error_vs_full_quality")
-        if err and err["frame"].get("frames"):
-            f, g = err["frame"], err["gazed_object"]
+        print(f"textures resident: {result.texture_resident_bytes / 1e6:.2f} MB (median)")
+        err = result.error_vs_full_quality
+        if err and err.frame.frames:
+            f, g = err.frame, err.gazed_object
             print(
-                f"error vs full quality: frame PSNR {f['psnr_db']:.1f} dB, SSIM "
-                f"{f['ssim']:.3f}, FLIP {f['flip']:.3f}; gazed object "
-                f"{g.get('psnr_db', math.nan):.1f} dB, SSIM {g.get('ssim', math.nan):.3f}"
+                f"error vs full quality: frame PSNR {f.psnr_db:.1f} dB, SSIM "
+                f"{f.ssim:.3f}, FLIP {f.flip:.3f}; gazed object "
+                f"{g.psnr_db if g.frames else math.nan:.1f} dB, SSIM {g.ssim:.3f}"
             )
         print(f"wrote {args.out}")
-        return 1 if result["errors"] else 0
+        return 1 if result.errors else 0
     if args.command == "demo" or open_window is None or not has_display():
         if args.command != "demo":
             why = (
