@@ -1,8 +1,10 @@
 """What "full quality" means, where the fovea is, and the error of a frame against it.
 
 The benchmark, the study and the window's quality panel all measure against the same reference
-(:func:`full_quality`) with the same fovea/periphery split (:func:`fovea_mask`) and metrics
-(:mod:`app.metrics`, on display values: the tone-mapped sRGB frames a user sees).
+(:func:`full_quality`, drawn by :class:`render.quality.FullQualityReference`) with the same
+fovea/periphery split (:func:`fovea_mask`) and metrics (:mod:`app.metrics`, on display values:
+the tone-mapped sRGB frames a user sees), as :class:`ErrorFigures`. A model, not part of the
+lab: render's quality probe (for the window) uses it, and render may not import the lab.
 """
 
 from __future__ import annotations
