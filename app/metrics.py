@@ -118,7 +118,7 @@ def compare_regions(
     for name, mask in masks.items():
         m = _select(mask, np.shape(reference))
         out[name] = {
-            "psnr": psnr(reference, test, m),
+            "psnr_db": psnr(reference, test, m),
             "ssim": float(sm[m].mean()) if m.any() else math.nan,
             "flip": float(fm[m].mean()) if fm is not None and m.any() else math.nan,
             "pixels": int(m.sum()),

@@ -1,13 +1,15 @@
 """What "full quality" means, where the fovea is, and the error of a frame against it.
 
 The benchmark, the study and the window's quality panel all measure against the same reference
-(:func:`full_quality`) with the same fovea/periphery split (:func:`fovea_mask`) and metrics
-(:mod:`app.metrics`, on display values: the tone-mapped sRGB frames a user sees).
+(:func:`full_quality`, drawn by :class:`render.quality.FullQualityReference`) with the same
+fovea/periphery split (:func:`fovea_mask`) and metrics (:mod:`app.metrics`, on display values:
+the tone-mapped sRGB frames a user sees), as :class:`ErrorFigures`. A model, not part of the
+lab: render's quality probe (for the window) uses it, and render may not import the lab.
 """
 
 from __future__ import annotations
 
-import math
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -64,32 +66,81 @@ def stereo_fovea(cps: CpsSettings, frame: FrameInput) -> np.ndarray:
     return np.hstack([np.flipud(fovea_mask(cps, frame, e)) for e in range(2)])
 
 
+@dataclass(frozen=True)
+class ErrorFigures:
+    """The error of one region of one frame against full quality (display values).
+
+    ``psnr_db`` is infinite for identical pixels; ``flip`` is NaN without flip-evaluator."""
+
+    psnr_db: float
+    ssim: float
+    flip: float
+    pixels: int
+
+    def to_dict(self) -> dict[str, float | int]:
+        return asdict(self)
+
+
+@dataclass
+class FrameErrors:
+    """:func:`measure`'s figures for one frame: the whole frame, the fovea and the periphery
+    (None where a region is empty or, without a fovea, not asked for), further named
+    ``regions`` (e.g. the gazed object), the largest foveal difference and the per-pixel error
+    map (FLIP; without flip-evaluator the largest channel difference)."""
+
+    frame: ErrorFigures | None
+    fovea: ErrorFigures | None
+    periphery: ErrorFigures | None
+    regions: dict[str, ErrorFigures | None]
+    fovea_max_abs_diff: int | None
+    flip_map: np.ndarray
+    has_fovea: bool = True
+
+    def region(self, name: str) -> ErrorFigures | None:
+        if name in ("frame", "fovea", "periphery"):
+            return getattr(self, name)
+        return self.regions.get(name)
+
+    def to_dict(self) -> dict:
+        """The figures as plain data ({} for an empty region), the error map as it is."""
+        names = ["frame", *(("fovea", "periphery") if self.has_fovea else ()), *self.regions]
+        out: dict = {}
+        for name in names:
+            figures = self.region(name)
+            out[name] = figures.to_dict() if figures is not None else {}
+        out["fovea_max_abs_diff"] = self.fovea_max_abs_diff
+        out["flip_map"] = self.flip_map
+        return out
+
+
 def measure(
     reference: np.ndarray,
     test: np.ndarray,
     fovea: np.ndarray | None,
     ppd: float,
     regions: dict[str, np.ndarray] | None = None,
-) -> dict:
-    """PSNR, SSIM and FLIP for the frame, the fovea and the periphery (``{}`` for an empty
-    one; absent without a ``fovea``) and any further ``regions``; the largest foveal
-    difference, and the per-pixel error map (FLIP; without flip-evaluator the largest channel
-    difference)."""
+) -> FrameErrors:
+    """PSNR, SSIM and FLIP of ``test`` against ``reference`` for the frame, the fovea and the
+    periphery (without a ``fovea``: the frame only) and any further ``regions``."""
     masks: dict[str, np.ndarray | None] = {"frame": None}
     if fovea is not None:
         masks.update(fovea=fovea, periphery=~fovea)
     masks.update(regions or {})
     flip_error = metrics.flip_map(reference, test, ppd)
-    out: dict = {
-        name: r if r["pixels"] else {}
+    figures = {
+        name: ErrorFigures(**r) if r["pixels"] else None
         for name, r in metrics.compare_regions(reference, test, ppd, masks, flip_error).items()
     }
     diff = np.abs(reference.astype(int) - test.astype(int))
-    out["fovea_max_abs_diff"] = (
-        int(diff[fovea].max()) if fovea is not None and fovea.any() else None
+    return FrameErrors(
+        frame=figures.pop("frame"),
+        fovea=figures.pop("fovea", None),
+        periphery=figures.pop("periphery", None),
+        regions=figures,
+        fovea_max_abs_diff=(int(diff[fovea].max()) if fovea is not None and fovea.any() else None),
+        flip_map=flip_error if flip_error is not None else diff.max(axis=2) / 255.0,
+        has_fovea=fovea is not None,
     )
-    out["flip_map"] = flip_error if flip_error is not None else diff.max(axis=2) / 255.0
-    return out
 
 
 # A short magma-like ramp: black (no error), purple, orange, pale yellow (FLIP 1).
@@ -108,20 +159,3 @@ def heat_map(error: np.ndarray, scale: float = 0.25) -> np.ndarray:
     rgb = _RAMP[lo] * (1 - f) + _RAMP[hi] * f
     alpha = np.clip(0.15 + 3.0 * e / max(scale, 1e-6), 0.0, 0.85) * (e > 1e-4)
     return np.dstack([rgb, 255.0 * alpha]).round().astype(np.uint8)
-
-
-def summary_lines(report: dict) -> list[str]:
-    """The figures as short lines for a panel or a log."""
-    lines = []
-    for region in ("frame", "fovea", "periphery"):
-        r = report.get(region) or {}
-        if not r:
-            lines.append(f"{region}: -")
-            continue
-        psnr = r.get("psnr", math.nan)
-        psnr_text = "identical" if psnr == math.inf else f"{psnr:.1f} dB"
-        lines.append(
-            f"{region}: PSNR {psnr_text}, SSIM {r.get('ssim', math.nan):.3f}, "
-            f"FLIP {r.get('flip', math.nan):.3f}"
-        )
-    return lines

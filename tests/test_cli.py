@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app import bench as bench_mod
-from app.cli import main
+from app.lab import bench as bench_mod
+from app.lab.cli import main
 
 
 def test_render_writes_a_stereo_png_and_frame_n_is_deterministic(tmp_path):

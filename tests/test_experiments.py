@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 
-from app.cli import main
-from app.experiments import EXPERIMENTS
+from app.lab.cli import main
+from app.lab.experiments import EXPERIMENTS
 from app.scenes import resolve_path
 from app.settings import Settings
 

@@ -273,8 +273,8 @@ def test_quality_panel_measures_against_full_quality_and_shows_a_heat_map(window
     window.wait_for_load()
     grab(window)
     same = window.measure_quality()  # default settings are full quality: no error
-    assert same["frame"]["psnr"] == float("inf") and same["fovea_max_abs_diff"] == 0
-    assert window.quality_panel.cells["frame", "psnr"].text() == "identical"
+    assert same["frame"]["psnr_db"] == float("inf") and same["fovea_max_abs_diff"] == 0
+    assert window.quality_panel.cells["frame", "psnr_db"].text() == "identical"
     plain = grab(window)
     s.cps.mode = "cps"
     window._setting_changed("cps.mode")
@@ -283,7 +283,7 @@ def test_quality_panel_measures_against_full_quality_and_shows_a_heat_map(window
     report = window.measure_quality()
     assert report["fovea_max_abs_diff"] == 0  # full rate around the gaze
     assert report["periphery"]["flip"] > report["fovea"]["flip"]
-    assert 10 < report["frame"]["psnr"] < 80
+    assert 10 < report["frame"]["psnr_db"] < 80
     assert window.quality_panel.cells["periphery", "flip"].text() not in ("-", "identical")
     assert window.quality_panel.heat.isChecked()
     shown = grab(window).astype(int)

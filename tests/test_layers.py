@@ -28,7 +28,8 @@ def test_no_qt_imports_below_ui():
 
 def test_headless_modules_import_without_qt():
     code = (
-        "import sys, app.cli, app.bench, app.session, render.offscreen, render.renderer; "
+        "import sys, ui.launcher, app.lab.cli, app.lab.bench, app.session, render.offscreen, "
+        "render.renderer; "
         "assert not any(m.startswith('PyQt6') for m in sys.modules), 'Qt was imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)

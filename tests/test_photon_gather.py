@@ -1,4 +1,4 @@
-"""The GPU photon gather (render.photon_gather) against the CPU reference (app.photon_ref).
+"""The GPU photon gather (render.photon_gather) against the CPU reference (app.lab.photon_ref).
 
 Every variant must give the reference's E within 1e-3 relative. Float32 on the GPU against
 float64 on the CPU can only disagree for a photon at distance ~r or with dot(N, dir) ~ 0, so
@@ -16,8 +16,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from app.hashgrid import HashGrid
+from app.lab.photon_ref import estimate_knn, estimate_radius
 from app.photon_map import PhotonMap, encode_directions
-from app.photon_ref import estimate_knn, estimate_radius
 from render.context import create_headless
 from render.photon_gather import (
     NO_WINNER,

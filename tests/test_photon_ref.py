@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-import app.photon_ref as ref
+import app.lab.photon_ref as ref
+from app.lab.photon_ref import build_tree, estimate_knn, estimate_radius
 from app.photon_map import PhotonMap, encode_directions
-from app.photon_ref import build_tree, estimate_knn, estimate_radius
 
 
 def make_photons(n: int, seed: int = 0, scale: float = 1.0, offset: float = 0.0) -> PhotonMap:

@@ -9,7 +9,7 @@ import pytest
 from app import indirect
 from app.camera import StereoCamera, disparity_px
 from app.frame import FrameInput
-from app.photon_ref import estimate_radius
+from app.lab.photon_ref import estimate_radius
 from app.scene import Material, Mesh, PointLight, Scene, Viewpoint
 from app.scenes import resolve
 from app.session import Session

@@ -213,7 +213,7 @@ def test_showroom_walkthrough_frame_is_a_lit_room_in_stereo():
 def test_sibenik_renders_headless(scenes_dir, tmp_path):
     from PIL import Image
 
-    from app.cli import main
+    from app.lab.cli import main
 
     out = tmp_path / "sibenik.png"
     assert (

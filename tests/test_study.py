@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app import study
-from app.study import FULL, Matrix, pareto, run_study
+from app.lab import study
+from app.lab.study import FULL, Matrix, pareto, run_study
 
 
 def tiny() -> Matrix:
-    return Matrix(
+    return Matrix.of(
         "showroom",
         "showroom_walkthrough",
         [

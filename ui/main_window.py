@@ -341,7 +341,7 @@ class MainWindow(QMainWindow):
             frame = report.get("frame") or {}
             self.statusBar().showMessage(
                 f"Against full quality: FLIP {frame.get('flip', float('nan')):.3f}, "
-                f"PSNR {frame.get('psnr', float('nan')):.1f} dB (Quality tab)",
+                f"PSNR {frame.get('psnr_db', float('nan')):.1f} dB (Quality tab)",
                 8000,
             )
         return report

@@ -22,7 +22,7 @@ from PyQt6.QtWidgets import (
 )
 
 REGIONS = ("frame", "fovea", "periphery")
-METRICS = (("psnr", "PSNR dB"), ("ssim", "SSIM"), ("flip", "FLIP"))
+METRICS = (("psnr_db", "PSNR dB"), ("ssim", "SSIM"), ("flip", "FLIP"))
 
 
 class QualityPanel(QWidget):
@@ -91,4 +91,4 @@ def _format(key: str, value: object) -> str:
         return "-"
     if math.isinf(value):
         return "identical"
-    return f"{value:.1f}" if key == "psnr" else f"{value:.4f}"
+    return f"{value:.1f}" if key == "psnr_db" else f"{value:.4f}"

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.report import markdown
+from app.lab.report import markdown
+from app.lab.runs import Run, named_runs
 
 PAPER_UNIT_M = 2.0
 COUNTS = {"512^2": 1 << 18, "256^2": 1 << 16, "128^2": 1 << 14}
@@ -111,14 +112,17 @@ def name_for(count: str, paper_radius: float, sets: tuple[str, ...]) -> str:
     return f"{count.replace('^', 'p')}-r{paper_radius:g}-{full['photons.gather']}{fused}-{eyes}"
 
 
-def table_runs() -> list[tuple[str, tuple[str, ...]]]:
-    """(name, settings) of every distinct run the tables need."""
+def table_runs() -> list[Run]:
+    """Every distinct run the tables need: the showroom walkthrough, 3 frames spread over the
+    walk (every 200th)."""
     seen: dict[str, tuple[str, ...]] = {}
     for _title, rows, columns in TABLES:
         for count, rho in rows:
             for _label, sets in columns:
                 seen.setdefault(name_for(count, rho, sets), run_sets(count, rho, sets))
-    return list(seen.items())
+    return list(
+        named_runs("showroom", "showroom_walkthrough", seen.items(), frames=3, stride=200, warmup=1)
+    )
 
 
 def tables(results: dict[str, dict]) -> str:
@@ -187,9 +191,9 @@ def peer_comparison(
     GPU finished), the cKDTree build, and its radius query plus the sums (all cores). Also the
     largest relative difference between the two estimates and the share of visited photons
     that lie within r."""
-    from app.bench import _open
     from app.hashgrid import HashGrid
-    from app.photon_ref import build_tree, estimate_radius
+    from app.lab.bench import _open
+    from app.lab.photon_ref import build_tree, estimate_radius
     from app.settings import Settings
     from render.photon_gather import GpuPhotonMap
 

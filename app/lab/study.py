@@ -4,7 +4,7 @@ frame-time-against-error plot with the Pareto front marked.
 
 Resumable: results.json is rewritten after every run, and a run already in it is not run again,
 so an interrupted study picks up where it stopped. Errors are computed on display values (what
-the user sees) by :func:`app.bench.bench`.
+the user sees) by :func:`app.lab.bench.bench`.
 """
 
 from __future__ import annotations
@@ -16,29 +16,51 @@ import json
 import math
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
-from app.bench import bench, parse_size
 from app.fileio import atomic_write_json, atomic_write_png, atomic_write_text
-from app.report import markdown
-from app.scenes import resolve_path
-from app.settings import Settings
+from app.lab.bench import TraceProgress, bench
+from app.lab.reference import ConvergedPhotons
+from app.lab.report import markdown
+from app.lab.results import BenchResult
+from app.lab.runs import Run, bench_run, named_runs
 
 FULL = "full-quality"
 
 
 @dataclass(frozen=True)
 class Matrix:
+    """A study's runs, all on one scene and path; the first is the reference (``FULL``)."""
+
     scene: str
     path: str
-    runs: list[tuple[str, tuple[str, ...]]]  # name, --set assignments; the first is the reference
-    frames: int = 0
-    stride: int = 24
-    compare_every: int = 3
+    runs: tuple[Run, ...]
+
+    @classmethod
+    def of(
+        cls,
+        scene: str,
+        path: str,
+        named: list[tuple[str, tuple[str, ...]]],
+        frames: int = 0,
+        stride: int = 24,
+        compare_every: int = 3,
+    ) -> Matrix:
+        """From (name, --set assignments) pairs sharing the frames, stride and comparison."""
+        common = dict(frames=frames, stride=stride, compare_every=compare_every, warmup=3)
+        return cls(scene, path, named_runs(scene, path, named, **common))
+
+    @property
+    def stride(self) -> int:
+        return self.runs[0].stride if self.runs else 1
+
+    @property
+    def compare_every(self) -> int:
+        return self.runs[0].compare_every if self.runs else 0
 
 
 def _cps_matrix() -> Matrix:
@@ -59,7 +81,7 @@ def _cps_matrix() -> Matrix:
                 ),
             )
         )
-    return Matrix("corridor", "corridor_walk", runs)
+    return Matrix.of("corridor", "corridor_walk", runs)
 
 
 def _tcr_matrix() -> Matrix:
@@ -71,14 +93,14 @@ def _tcr_matrix() -> Matrix:
                 ("tcr.enabled=true", f"tcr.preset={preset}", f"tcr.mode={mode}"),
             )
         )
-    return Matrix("showroom", "showroom_walkthrough", runs, stride=10, compare_every=3)
+    return Matrix.of("showroom", "showroom_walkthrough", runs, stride=10, compare_every=3)
 
 
 def _photon_matrix() -> Matrix:
     """Photons emitted x gather radius (and the gather at block rate under CPS), each against
     the converged photon map (app.quality.full_quality): the speed/accuracy curve of the
     indirect light."""
-    from app.photon_bench import COUNTS, radius_m
+    from app.lab.photon_bench import COUNTS, radius_m
 
     base = ("photons.enabled=on", "photons.stereo_reuse=true")
     runs: list[tuple[str, tuple[str, ...]]] = [
@@ -105,7 +127,7 @@ def _photon_matrix() -> Matrix:
             (*base, "photons.photons=65536", "photons.radius_m=0.2", "cps.mode=cps"),
         )
     )
-    return Matrix("showroom", "showroom_walkthrough", runs, stride=150, compare_every=1)
+    return Matrix.of("showroom", "showroom_walkthrough", runs, stride=150, compare_every=1)
 
 
 MATRICES: dict[str, Callable[[], Matrix]] = {
@@ -114,50 +136,58 @@ MATRICES: dict[str, Callable[[], Matrix]] = {
     "photons": _photon_matrix,
 }
 
-FIELDS = (
-    "name",
-    "settings",
-    "frames",
-    "fps",
-    "frame_ms",
-    "p95_ms",
-    "speedup",
-    "psnr_db",
-    "ssim",
-    "flip",
-    "fovea_psnr_db",
-    "fovea_max_diff",
-    "periphery_psnr_db",
-    "periphery_ssim",
-    "periphery_flip",
-    "resident_mb",
-    "shaded_samples",
-)
+
+@dataclass
+class StudyRow:
+    """One run of a study (a row of results.json / .csv); errors are None where the run
+    compared no frame (or the region was empty)."""
+
+    name: str
+    settings: str
+    frames: int
+    fps: float
+    frame_ms: float
+    p95_ms: float
+    speedup: float | None
+    psnr_db: float | None
+    ssim: float | None
+    flip: float | None
+    fovea_psnr_db: float | None
+    fovea_max_diff: int | None
+    periphery_psnr_db: float | None
+    periphery_ssim: float | None
+    periphery_flip: float | None
+    resident_mb: float
+    shaded_samples: int
+
+    @classmethod
+    def of(cls, run: Run, result: BenchResult) -> StudyRow:
+        err = result.error_vs_full_quality
+        frame = err.frame if err and err.frame.frames else None
+        fovea = err.fovea if err and err.fovea and err.fovea.frames else None
+        periphery = err.periphery if err and err.periphery and err.periphery.frames else None
+        return cls(
+            name=run.name,
+            settings=" ".join(run.sets),
+            frames=result.frames,
+            fps=result.fps_median,
+            frame_ms=result.frame_ms.median,
+            p95_ms=result.frame_ms.p95,
+            speedup=None,
+            psnr_db=frame.psnr_db if frame else None,
+            ssim=frame.ssim if frame else None,
+            flip=frame.flip if frame else None,
+            fovea_psnr_db=fovea.psnr_db if fovea else None,
+            fovea_max_diff=err.fovea_max_abs_diff if err else None,
+            periphery_psnr_db=periphery.psnr_db if periphery else None,
+            periphery_ssim=periphery.ssim if periphery else None,
+            periphery_flip=periphery.flip if periphery else None,
+            resident_mb=result.texture_resident_bytes / 1e6,
+            shaded_samples=result.shaded_samples,
+        )
 
 
-def row_from(name: str, sets: tuple[str, ...], result: dict) -> dict:
-    err = result.get("error_vs_full_quality") or {}
-    frame = err.get("frame", {})
-    fovea, periphery = err.get("fovea", {}), err.get("periphery", {})
-    return {
-        "name": name,
-        "settings": " ".join(sets),
-        "frames": result["frames"],
-        "fps": result["fps_median"],
-        "frame_ms": result["frame_ms"]["median"],
-        "p95_ms": result["frame_ms"]["p95"],
-        "speedup": None,
-        "psnr_db": frame.get("psnr_db"),
-        "ssim": frame.get("ssim"),
-        "flip": frame.get("flip"),
-        "fovea_psnr_db": fovea.get("psnr_db"),
-        "fovea_max_diff": err.get("fovea_max_abs_diff"),
-        "periphery_psnr_db": periphery.get("psnr_db"),
-        "periphery_ssim": periphery.get("ssim"),
-        "periphery_flip": periphery.get("flip"),
-        "resident_mb": result["texture_resident_bytes"] / 1e6,
-        "shaded_samples": result["shaded_samples"],
-    }
+FIELDS = tuple(f.name for f in fields(StudyRow))
 
 
 def pareto(rows: list[dict], cost: str = "frame_ms", error: str = "flip") -> list[str]:
@@ -198,25 +228,14 @@ def run_study(
         except (OSError, ValueError):
             rows = []  # unreadable: start again rather than trust half a file
     done = {r["name"] for r in rows}
-    for index, (name, sets) in enumerate(matrix.runs, start=1):
+    converged = ConvergedPhotons(TraceProgress())  # traced once for the whole matrix
+    for index, run in enumerate(matrix.runs, start=1):
         if progress:
-            progress(index, len(matrix.runs), name)
-        if name in done:
+            progress(index, len(matrix.runs), run.name)
+        if run.name in done:
             continue
-        settings = Settings()
-        settings.apply(list(sets))
-        result = bench(
-            matrix.scene,
-            parse_size(size),
-            matrix.frames,
-            settings,
-            3,
-            resolve_path(matrix.path),
-            None,
-            matrix.compare_every,
-            matrix.stride,
-        )
-        rows.append(row_from(name, sets, result))
+        result = bench_run(replace(run, size=size), converged, runner=bench)
+        rows.append(asdict(StudyRow.of(run, result)))
         atomic_write_json(
             results_file,
             {

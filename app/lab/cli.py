@@ -1,18 +1,26 @@
-"""``vrpreview``: the window, or headless ``render`` / ``bench`` / ``demo`` runs."""
+"""``vrpreview``: headless ``render`` / ``bench`` / ``demo`` / ``experiments`` / ``study`` /
+``report`` runs, or (without a command) the window through the ``open_window`` callback.
+
+The lab never imports ``ui``: the ``vrpreview`` console script is :func:`ui.launcher.main`, which
+passes a callback that loads the window only when it is wanted.
+"""
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import logging
 import math
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
+from app.paths import CameraPath
 from app.settings import Settings, SettingsError
 
 EXIT_USAGE = 2
+# Opens the window: (scene, settings, path or None) -> exit status.
+OpenWindow = Callable[[str, Settings, CameraPath | None], int]
 
 
 def _common(p: argparse.ArgumentParser, scene_required: bool = False) -> None:
@@ -131,7 +139,9 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, open_window: OpenWindow | None = None) -> int:
+    """Run the command in ``argv``; without one, ``open_window`` opens the window (no display
+    or no ``open_window``: the headless walkthrough runs instead)."""
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     args = build_parser().parse_args(argv)
     from app.loaders import SceneLoadError
@@ -148,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{key} = {settings.get(key)!r}  # {meta.get('help', '')}")
             return 0
         path = resolve_path(args.path) if args.path else None
-        return _run(args, settings, path)
+        return _run(args, settings, path, open_window)
     except (
         SettingsError,
         SceneLoadError,
@@ -162,23 +172,28 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
 
 
-def _run(args: argparse.Namespace, settings: Settings, path) -> int:
-    from app import bench
+def _run(
+    args: argparse.Namespace,
+    settings: Settings,
+    path: CameraPath | None,
+    open_window: OpenWindow | None,
+) -> int:
+    from app.lab import bench
 
     if args.command == "experiments":
-        from app.experiments import run_all
+        from app.lab.experiments import run_all
 
         print(run_all(args.which, args.out or f"out/bench-{args.which}", args.only))
         return 0
     if args.command == "study":
-        from app.study import print_progress, run_study
+        from app.lab.study import print_progress, run_study
 
         out = args.out or f"out/study-{args.which}"
         rows = run_study(args.which, out, args.size, print_progress)
         print(f"{len(rows)} runs; results.json, results.csv, report.md and pareto.png in {out}/")
         return 0
     if args.command == "report":
-        from app.report import report
+        from app.lab.report import report
 
         print(report(args.files, tuple(args.group)))
         return 0
@@ -200,31 +215,35 @@ def _run(args: argparse.Namespace, settings: Settings, path) -> int:
             args.compare_every,
             args.stride,
         )
-        from app.fileio import atomic_write_json
+        from app.lab.results import write_json
 
-        atomic_write_json(args.out, result)
-        passes = ", ".join(f"{k} {v['median_ms']:.1f}" for k, v in result["passes"].items())
+        write_json(args.out, result)
+        passes = ", ".join(f"{k} {v.median_ms:.1f}" for k, v in result.passes.items())
         print(
-            f"{result['scene']['name']} {args.size}: {result['fps_median']:.1f} fps, "
-            f"frame {result['frame_ms']['median']:.1f} ms median; passes (ms) {passes}"
+            f"{result.scene['name']} {args.size}: {result.fps_median:.1f} fps, "
+            f"frame {result.frame_ms.median:.1f} ms median; passes (ms) {passes}"
         )
-        print(f"textures resident: {result['texture_resident_bytes'] / 1e6:.2f} MB (median)")
-        err = result.get("error_vs_full_quality")
-        if err and err["frame"].get("frames"):
-            f, g = err["frame"], err["gazed_object"]
+        print(f"textures resident: {result.texture_resident_bytes / 1e6:.2f} MB (median)")
+        err = result.error_vs_full_quality
+        if err and err.frame.frames:
+            f, g = err.frame, err.gazed_object
             print(
-                f"error vs full quality: frame PSNR {f['psnr_db']:.1f} dB, SSIM "
-                f"{f['ssim']:.3f}, FLIP {f['flip']:.3f}; gazed object "
-                f"{g.get('psnr_db', math.nan):.1f} dB, SSIM {g.get('ssim', math.nan):.3f}"
+                f"error vs full quality: frame PSNR {f.psnr_db:.1f} dB, SSIM "
+                f"{f.ssim:.3f}, FLIP {f.flip:.3f}; gazed object "
+                f"{g.psnr_db if g.frames else math.nan:.1f} dB, SSIM {g.ssim:.3f}"
             )
         print(f"wrote {args.out}")
-        return 1 if result["errors"] else 0
-    if args.command == "demo" or not has_display():
+        return 1 if result.errors else 0
+    if args.command == "demo" or open_window is None or not has_display():
         if args.command != "demo":
+            why = (
+                "no display found (DISPLAY/WAYLAND_DISPLAY unset)"
+                if not has_display()
+                else "no window here (the `vrpreview` command, ui.launcher, opens it)"
+            )
             print(
-                "vrpreview: no display found (DISPLAY/WAYLAND_DISPLAY unset): running the "
-                "default walkthrough headless instead; screenshots and a frame-time summary "
-                "go to out/",
+                f"vrpreview: {why}: running the default walkthrough headless instead; "
+                "screenshots and a frame-time summary go to out/",
                 file=sys.stderr,
             )
         out_dir = Path(getattr(args, "out_dir", "out"))
@@ -235,9 +254,7 @@ def _run(args: argparse.Namespace, settings: Settings, path) -> int:
             f"{len(summary['screenshots'])} screenshots and summary.json in {out_dir}/"
         )
         return 0
-    # The window: ui/ is the only layer that imports Qt, loaded here on demand.
-    window = importlib.import_module("ui.main_window")
-    return int(window.run(args.scene, settings, path))
+    return int(open_window(args.scene, settings, path))
 
 
 if __name__ == "__main__":

@@ -7,7 +7,6 @@ run and machine; only the timings vary.
 from __future__ import annotations
 
 import logging
-import math
 import sys
 import time
 from collections.abc import Callable
@@ -17,16 +16,24 @@ import numpy as np
 
 from app import metrics, scenes
 from app.fileio import atomic_write_json, atomic_write_png
+from app.lab.reference import BenchReference, ConvergedPhotons
+from app.lab.results import (
+    BenchResult,
+    ErrorVsFullQuality,
+    FrameTimes,
+    GroupTimes,
+    MeanErrors,
+    PassTimes,
+)
 from app.overlay_text import text_image
 from app.paths import FIXED_DT, CameraPath
-from app.quality import full_quality, measure, stereo_fovea
+from app.quality import FrameErrors
 from app.session import Session
 from app.settings import Settings
 from app.stats import overlay_lines, summarize
 
 log = logging.getLogger(__name__)
 Progress = Callable[[int, int], None]
-_last_fraction = -1.0
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -48,26 +55,30 @@ def _open(
     scene = scenes.resolve(scene_name)
     session = Session(settings)
     session.set_scene(scene, path)
-    host = OffscreenHost(*size, settings, trace_progress=print_trace_progress)
+    host = OffscreenHost(*size, settings, trace_progress=TraceProgress())
     host.renderer.photons.measure = True  # per-eye gather time (waits for the GPU per eye)
     host.set_scene(scene)
     return scene, session, host
 
 
-def print_trace_progress(fraction: float) -> None:
-    """A text progress bar for photon tracing on stderr."""
-    global _last_fraction
-    if fraction == _last_fraction:
-        return
-    _last_fraction = fraction
-    filled = int(round(30 * min(max(fraction, 0.0), 1.0)))
-    end = "\n" if fraction >= 1.0 else ""
-    print(
-        f"\rtracing photons [{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:3.0f}%",
-        end=end,
-        file=sys.stderr,
-        flush=True,
-    )
+class TraceProgress:
+    """A text progress bar for photon tracing on stderr (each fraction printed once)."""
+
+    def __init__(self) -> None:
+        self.last = -1.0
+
+    def __call__(self, fraction: float) -> None:
+        if fraction == self.last:
+            return
+        self.last = fraction
+        filled = int(round(30 * min(max(fraction, 0.0), 1.0)))
+        end = "\n" if fraction >= 1.0 else ""
+        print(
+            f"\rtracing photons [{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:3.0f}%",
+            end=end,
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def render_frame(
@@ -100,16 +111,18 @@ def bench(
     progress: Progress | None = None,
     compare_every: int = 0,
     stride: int = 1,
-) -> dict:
+    converged: ConvergedPhotons | None = None,
+) -> BenchResult:
     """Replay the path; per-frame wall time and per-pass GPU time. frames=0: the whole path.
 
     ``stride`` K > 1 times every K-th frame of the path only (the session still steps through
     the frames in between, so motion states are as when played): the whole of a long walk in
     fewer rendered frames.
 
-    With ``compare_every`` K > 0, every K-th frame is also rendered at full quality (TCR off) by
-    a second host and the error of this setting against it is measured (display values): for
-    the whole frame and for the gazed object alone.
+    With ``compare_every`` K > 0, every K-th frame is also rendered at full quality (TCR off;
+    :class:`app.lab.reference.BenchReference`, its converged photon map from ``converged``,
+    shared by the runs of an experiment or a study) and the error of this setting against it
+    is measured (display values): for the whole frame and for the gazed object alone.
     """
     scene, session, host = _open(scene_name, size, settings, path)
     assert session.path is not None
@@ -117,13 +130,8 @@ def bench(
     total = frames if frames > 0 else -(-session.path.frame_count() // stride)
     reference = None
     if compare_every > 0:
-        from render.offscreen import OffscreenHost
-
-        ref_settings = full_quality(settings)
-        reference = OffscreenHost(*size, ref_settings)
-        _share_converged(reference, scene_name, scene)
-        reference.set_scene(scene)
-        reference.set_text_image(None)
+        converged = converged or ConvergedPhotons(TraceProgress())
+        reference = BenchReference(host, scene_name, scene, converged)
     ppd = metrics.pixels_per_degree(
         size[0] // 2, session.camera.horizontal_fov_deg(size[0] // 2, size[1])
     )
@@ -132,10 +140,7 @@ def bench(
     samples: list[int] = []
     resident: list[int] = []
     per_frame: list[dict] = []
-    errors_whole: list[dict] = []
-    errors_gazed: list[dict] = []
-    errors_regions: dict[str, list[dict]] = {}
-    fovea_max: list[int] = []
+    compared: list[tuple[int, FrameErrors]] = []  # (state, figures) per compared frame
     photon_frames: list[dict] = []
     try:
         host.set_text_image(None)
@@ -179,24 +184,14 @@ def bench(
             }
             if reference is not None and i % compare_every == 0:
                 test_img = host.read_pixels()  # the timed frame itself
-                ref_img = reference.draw(frame)
-                regions = (
-                    {"gazed": np.hstack(reference.object_ids(frame)) == gazed}
-                    if gazed is not None
-                    else {}
-                )
-                err = measure(ref_img, test_img, stereo_fovea(settings.cps, frame), ppd, regions)
-                record["error"] = err["frame"]
-                errors_whole.append({**err["frame"], "state": session.state})
-                for region in ("fovea", "periphery"):
-                    if err[region]:
-                        record[f"error_{region}"] = err[region]
-                        errors_regions.setdefault(region, []).append(err[region])
-                if err["fovea_max_abs_diff"] is not None:
-                    fovea_max.append(err["fovea_max_abs_diff"])
-                if err.get("gazed"):
-                    record["error_gazed"] = err["gazed"]
-                    errors_gazed.append({**err["gazed"], "state": session.state})
+                err = reference.measure(settings, frame, test_img, ppd, gazed)
+                compared.append((session.state, err))
+                if err.frame is not None:
+                    record["error"] = err.frame.to_dict()
+                for region in ("fovea", "periphery", "gazed"):
+                    figures = err.region(region)
+                    if figures is not None:
+                        record[f"error_{region}"] = figures.to_dict()
             per_frame.append(record)
             if progress:
                 progress(i + 1, total)
@@ -204,65 +199,66 @@ def bench(
         device = host.ctx.info.get("GL_RENDERER", "")
         trace_ms = host.photon_cache.trace_ms
     finally:
-        host.close()
         if reference is not None:
             reference.close()
-    ft = summarize(frame_ms)
-    result = {
-        "scene": {
+        host.close()
+    return BenchResult(
+        scene={
             "name": scene.name,
             "source": scene.source,
             "triangles": scene.triangle_count,
             "lights": len(scene.lights),
             "textures": len(scene.textures),
         },
-        "path": session.path.scene or scene.name,
-        "size": {"width": size[0], "height": size[1], "eye": [size[0] // 2, size[1]]},
-        "device": device,
-        "frames": len(frame_ms),
-        "warmup_frames": warmup,
-        "stride": stride,
-        "time_step_s": FIXED_DT,
-        "fps_median": 1000.0 / ft["median"] if ft["median"] > 0 else 0.0,
-        "frame_ms": ft,
-        "passes": {
-            k: {"median_ms": summarize(v)["median"], "p95_ms": summarize(v)["p95"]}
-            for k, v in pass_ms.items()
+        path=session.path.scene or scene.name,
+        size={"width": size[0], "height": size[1], "eye": [size[0] // 2, size[1]]},
+        device=device,
+        frames=len(frame_ms),
+        warmup_frames=warmup,
+        stride=stride,
+        time_step_s=FIXED_DT,
+        frame_ms=FrameTimes.of(frame_ms),
+        passes={
+            k: PassTimes(FrameTimes.of(v).median, FrameTimes.of(v).p95) for k, v in pass_ms.items()
         },
-        "texture_resident_bytes": int(np.median(resident)) if resident else 0,
-        "texture_resident_bytes_max": max(resident, default=0),
-        "shaded_samples": int(np.median(samples)) if samples else 0,
-        "by_state": _group(per_frame, "state"),
-        "by_gazed_level": _group(per_frame, "gazed_level"),
-        "by_gazed_distance_m": _group(
+        texture_resident_bytes=int(np.median(resident)) if resident else 0,
+        texture_resident_bytes_max=max(resident, default=0),
+        shaded_samples=int(np.median(samples)) if samples else 0,
+        by_state=_group(per_frame, "state"),
+        by_gazed_level=_group(per_frame, "gazed_level"),
+        by_gazed_distance_m=_group(
             [r for r in per_frame if r["gazed_distance_m"] is not None],
             "gazed_distance_m",
             max_groups=40,
         ),
-        "settings": settings.to_dict(),
-        "photons": _photon_summary(photon_frames, trace_ms),
-        "errors": errors,
-        "per_frame": per_frame,
-    }
-    if reference is not None:
-        result["error_vs_full_quality"] = {
-            "reference": "same frame at full quality (TCR off, full-rate lighting, no mask, "
-            "converged photon map), display values; fovea/periphery: pixels at "
-            "CPS level 0 / above 0 (without CPS: by angle from the gaze alone)",
-            "pixels_per_degree": ppd,
-            "frame": _mean_errors(errors_whole),
-            "gazed_object": _mean_errors(errors_gazed),
-            **{region: _mean_errors(rows) for region, rows in errors_regions.items()},
-            "fovea_max_abs_diff": max(fovea_max) if fovea_max else None,
-            "by_state": {
-                str(s): {
-                    "frame": _mean_errors([e for e in errors_whole if e["state"] == s]),
-                    "gazed_object": _mean_errors([e for e in errors_gazed if e["state"] == s]),
-                }
-                for s in sorted({e["state"] for e in errors_whole})
-            },
-        }
-    return result
+        settings=settings.to_dict(),
+        photons=_photon_summary(photon_frames, trace_ms),
+        errors=errors,
+        per_frame=per_frame,
+        error_vs_full_quality=(_error_summary(compared, ppd) if reference is not None else None),
+    )
+
+
+def _error_summary(compared: list[tuple[int, FrameErrors]], ppd: float) -> ErrorVsFullQuality:
+    """Means over the compared frames: whole, gazed object, fovea and periphery, per state."""
+
+    def means(region: str, state: int | None = None) -> MeanErrors:
+        rows = [e.region(region) for s, e in compared if state is None or s == state]
+        return MeanErrors.of([r for r in rows if r is not None])
+
+    fovea_max = [e.fovea_max_abs_diff for _s, e in compared if e.fovea_max_abs_diff is not None]
+    return ErrorVsFullQuality(
+        pixels_per_degree=ppd,
+        frame=means("frame"),
+        gazed_object=means("gazed"),
+        fovea=means("fovea") if any(e.fovea for _s, e in compared) else None,
+        periphery=means("periphery") if any(e.periphery for _s, e in compared) else None,
+        fovea_max_abs_diff=max(fovea_max) if fovea_max else None,
+        by_state={
+            str(s): {"frame": means("frame", s), "gazed_object": means("gazed", s)}
+            for s in sorted({s for s, e in compared if e.frame is not None})
+        },
+    )
 
 
 def _photon_summary(frames: list[dict], trace_ms: float) -> dict | None:
@@ -287,54 +283,19 @@ def _photon_summary(frames: list[dict], trace_ms: float) -> dict | None:
     }
 
 
-_converged: dict[tuple, tuple] = {}  # (scene, count, seed, bounces) -> (scene, PhotonMap)
-
-
-def _share_converged(host, scene_name: str, scene) -> None:
-    """Trace the converged photon map once per process and scene (4M paths take a while), and
-    hand it to each reference host."""
-    from app.indirect import map_key, trace, wanted
-
-    s = host.settings.photons
-    if not wanted(s, scene):
-        return
-    memo = (scene_name, s.photons, s.seed, s.max_bounces)
-    if memo not in _converged:
-        _converged.clear()  # one at a time: a 4M map is 128 MB
-        _converged[memo] = trace(s, scene, print_trace_progress)
-    host.photon_cache.store(map_key(s, scene), scene, _converged[memo])
-
-
-def _group(records: list[dict], key: str, max_groups: int = 0) -> dict[str, dict]:
+def _group(records: list[dict], key: str, max_groups: int = 0) -> dict[str, GroupTimes]:
     """Median frame time per value of ``key``; {} when there are more than ``max_groups``
     values (0: no limit), e.g. distances along a continuous walk."""
-    out: dict[str, dict] = {}
+    out: dict[str, GroupTimes] = {}
     values = {r[key] for r in records}
     if max_groups and len(values) > max_groups:
         return out
     for value in sorted(values, key=lambda v: (isinstance(v, str), v)):
-        ms = [r["ms"] for r in records if r[key] == value]
-        med = summarize(ms)["median"]
-        out[str(value)] = {
-            "frames": len(ms),
-            "frame_ms_median": med,
-            "fps_median": 1000.0 / med if med > 0 else 0.0,
-        }
+        ms = FrameTimes.of([r["ms"] for r in records if r[key] == value])
+        out[str(value)] = GroupTimes(
+            len([r for r in records if r[key] == value]), ms.median, ms.fps
+        )
     return out
-
-
-def _mean_errors(rows: list[dict]) -> dict:
-    """Mean PSNR over frames that differ (identical frames have infinite PSNR), SSIM, FLIP."""
-    if not rows:
-        return {"frames": 0}
-    finite = [r["psnr"] for r in rows if math.isfinite(r["psnr"])]
-    return {
-        "frames": len(rows),
-        "identical_frames": len(rows) - len(finite),
-        "psnr_db": float(np.mean(finite)) if finite else math.inf,
-        "ssim": float(np.mean([r["ssim"] for r in rows])),
-        "flip": float(np.nanmean([r["flip"] for r in rows])),
-    }
 
 
 def demo(

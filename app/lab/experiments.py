@@ -2,59 +2,22 @@
 
 Each run is one ``vrpreview bench`` with its settings; every result is written as its own
 JSON file (the command that makes it again is stored in it) and the tables are printed at the
-end through :mod:`app.report`. Runs go one after another: timings of runs that overlap on a
+end through :mod:`app.lab.report`. Runs go one after another: timings of runs that overlap on a
 2-core machine mean nothing.
 """
 
 from __future__ import annotations
 
-import shlex
+import json
 import sys
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.bench import bench, parse_size
-from app.fileio import atomic_write_json
-from app.report import report
-from app.scenes import resolve_path
-from app.settings import Settings
-
-
-@dataclass(frozen=True)
-class Run:
-    name: str
-    scene: str
-    path: str
-    sets: tuple[str, ...]
-    frames: int = 0
-    stride: int = 1
-    compare_every: int = 0
-    size: str = "1280x720"
-    groups: tuple[str, ...] = field(default=())
-    warmup: int = 5
-
-    def command(self) -> str:
-        parts = [
-            "vrpreview",
-            "bench",
-            "--scene",
-            self.scene,
-            "--path",
-            self.path,
-            "--size",
-            self.size,
-            "--frames",
-            str(self.frames),
-            "--warmup",
-            str(self.warmup),
-        ]
-        if self.stride > 1:
-            parts += ["--stride", str(self.stride)]
-        if self.compare_every:
-            parts += ["--compare-every", str(self.compare_every)]
-        for s in self.sets:
-            parts += ["--set", s]
-        return shlex.join(parts)
+from app.lab.bench import TraceProgress
+from app.lab.photon_bench import table_runs, tables, write_peer
+from app.lab.reference import ConvergedPhotons
+from app.lab.report import report
+from app.lab.results import write_json
+from app.lab.runs import Run, bench_run
 
 
 def tcr_runs() -> list[Run]:
@@ -170,13 +133,8 @@ def cps_runs() -> list[Run]:
 
 def photon_runs() -> list[Run]:
     """The photon-mapping paper's Tables 1, 2, 4 and 5 on the showroom walkthrough: 3 frames
-    spread over the walk (every 200th), both eyes at 640x720 (see app.photon_bench)."""
-    from app.photon_bench import table_runs
-
-    return [
-        Run(name, "showroom", "showroom_walkthrough", sets, frames=3, stride=200, warmup=1)
-        for name, sets in table_runs()
-    ]
+    spread over the walk (every 200th), both eyes at 640x720 (see app.lab.photon_bench)."""
+    return table_runs()
 
 
 EXPERIMENTS = {"tcr": tcr_runs, "cps": cps_runs, "photons": photon_runs}
@@ -188,35 +146,19 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
     out = Path(out_dir)
     runs = [r for r in EXPERIMENTS[which]() if not only or only in r.name]
     files = []
+    converged = ConvergedPhotons(TraceProgress())  # traced once for all the runs that compare
     for index, run in enumerate(runs, start=1):
         print(f"[{index}/{len(runs)}] {run.name}: {run.command()}", file=sys.stderr, flush=True)
-        settings = Settings()
-        settings.apply(list(run.sets))
-        result = bench(
-            run.scene,
-            parse_size(run.size),
-            run.frames,
-            settings,
-            run.warmup,
-            resolve_path(run.path),
-            None,
-            run.compare_every,
-            run.stride,
-        )
-        result["command"] = run.command()
+        result = bench_run(run, converged)
         target = out / f"{run.name}.json"
-        atomic_write_json(target, result)
+        write_json(target, result)
         files.append(target)
         print(
-            f"    {result['fps_median']:.2f} fps, {result['frame_ms']['median']:.1f} ms",
+            f"    {result.fps_median:.2f} fps, {result.frame_ms.median:.1f} ms",
             file=sys.stderr,
             flush=True,
         )
     if which == "photons":
-        import json
-
-        from app.photon_bench import tables, write_peer
-
         # Every run in the folder, so a table can be completed by later --only runs.
         results = {
             f.stem: json.loads(f.read_text(encoding="utf-8"))
