@@ -9,6 +9,8 @@ and the dimmer scales the indirect light in the shader.
 
 from __future__ import annotations
 
+import concurrent.futures
+import copy
 import logging
 import time
 from collections.abc import Callable
@@ -33,14 +35,28 @@ def map_key(settings: PhotonSettings, scene: Scene) -> tuple:
     return (id(scene), settings.photons, settings.seed, settings.max_bounces)
 
 
-class PhotonCache:
-    """The current scene's photon map, traced on demand and kept until its key changes."""
+class PhotonService:
+    """The current scene's photon map: knows when a new one is needed, traces it, keeps it.
+
+    Two ways to trace, one cache. :meth:`ensure` traces blocking (the offscreen host, before a
+    frame). :meth:`poll` traces on a worker thread (the window, from its timer): it starts a
+    trace when the map is missing, cancels one the settings or the scene have moved past (the
+    new one starts once the old has stopped), and hands a finished map over. While it runs,
+    :attr:`tracing` is true and :attr:`progress` is the fraction done. A failed trace is not
+    retried for the same key; :meth:`take_error` returns its message once.
+    """
 
     def __init__(self) -> None:
         self.key: tuple | None = None
         self.map: PhotonMap | None = None
         self.scene: Scene | None = None  # held so that id(scene) in the key stays unique
         self.trace_ms = 0.0
+        self.progress = 0.0
+        self.failed_key: tuple | None = None
+        self._error: str | None = None
+        self._executor: concurrent.futures.ThreadPoolExecutor | None = None
+        # (future, key, scene, cancel flag, start time) of the trace on the worker thread
+        self._job: tuple[concurrent.futures.Future, tuple, Scene, list[bool], float] | None = None
 
     def current(self, settings: PhotonSettings, scene: Scene | None) -> PhotonMap | None:
         """The map for these settings if it is already traced (never traces)."""
@@ -55,7 +71,7 @@ class PhotonCache:
         progress: Callable[[float], None] | None = None,
         cancel: Callable[[], bool] | None = None,
     ) -> PhotonMap | None:
-        """Trace if needed (blocking; the window calls this from a worker thread)."""
+        """The map for these settings, traced here and now (blocking) if needed."""
         if not wanted(settings, scene):
             return None
         assert scene is not None
@@ -68,8 +84,80 @@ class PhotonCache:
         return self.map
 
     def store(self, key: tuple, scene: Scene, photons: PhotonMap) -> None:
-        """Keep a map (traced here, or by the window's worker thread)."""
+        """Keep a map (traced here, or elsewhere for these settings and scene)."""
         self.key, self.scene, self.map = key, scene, photons
+
+    # -- tracing in the background -------------------------------------------------------------
+    @property
+    def tracing(self) -> bool:
+        """Whether a trace is running on the worker thread."""
+        return self._job is not None
+
+    def failed(self, settings: PhotonSettings, scene: Scene | None) -> bool:
+        """Whether tracing for these settings and scene failed (and is not retried)."""
+        return scene is not None and self.failed_key == map_key(settings, scene)
+
+    def take_error(self) -> str | None:
+        """The message of a trace that failed since the last call, once."""
+        error, self._error = self._error, None
+        return error
+
+    def poll(self, settings: PhotonSettings, scene: Scene | None) -> PhotonMap | None:
+        """Advance the background trace; returns the map to show now (None: no indirect light).
+
+        Never blocks: collects a finished trace, cancels one that is no longer wanted, and
+        starts one when these settings need a map that is neither traced nor failed.
+        """
+        if self._job is not None:
+            future, key, traced_scene, cancel, started = self._job
+            if not future.done():
+                if not wanted(settings, scene) or key != map_key(settings, scene):
+                    cancel[0] = True  # settings moved on: stop, then trace the new one
+                return self.current(settings, scene)
+            self._job = None
+            from app.photons import TracingCancelled  # loaded with the tracer, not before
+
+            try:
+                photons = future.result()
+            except TracingCancelled:
+                pass
+            except Exception as exc:  # noqa: BLE001 - a tracer bug must not take the host down
+                log.exception("photon tracing failed")
+                self.failed_key = key
+                self._error = f"{traced_scene.name}: {exc}"
+            else:
+                self.store(key, traced_scene, photons)
+                self.trace_ms = (time.monotonic() - started) * 1e3
+        current = self.current(settings, scene)
+        if current is None and wanted(settings, scene) and not self.failed(settings, scene):
+            self._start(settings, scene)
+        return current
+
+    def _start(self, settings: PhotonSettings, scene: Scene | None) -> None:
+        assert scene is not None
+        if self._executor is None:
+            self._executor = concurrent.futures.ThreadPoolExecutor(
+                max_workers=1, thread_name_prefix="photons"
+            )
+        cancel = [False]
+        self.progress = 0.0
+
+        def progress(fraction: float) -> None:
+            self.progress = fraction  # read by the host's poll; a float store is atomic
+
+        # A copy: the settings may change while the worker reads them.
+        future = self._executor.submit(
+            trace, copy.copy(settings), scene, progress, lambda: cancel[0]
+        )
+        self._job = (future, map_key(settings, scene), scene, cancel, time.monotonic())
+
+    def close(self) -> None:
+        """Cancel a running trace and let the worker thread go (without waiting for it)."""
+        if self._job is not None:
+            self._job[3][0] = True
+        if self._executor is not None:
+            self._executor.shutdown(wait=False, cancel_futures=True)
+            self._executor = None
 
 
 def trace(

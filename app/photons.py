@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.color import SRGB8_TO_LINEAR, srgb_to_linear
 from app.photon_map import PhotonMap, encode_directions
 from app.raycast import RayCaster
 from app.scene import Material, Scene
@@ -315,13 +316,6 @@ def _clean(values, fallback: float) -> np.ndarray:
     return np.clip(v, 0.0, 1.0)
 
 
-def _srgb_to_linear(f: np.ndarray) -> np.ndarray:
-    return np.where(f <= 0.04045, f / 12.92, ((f + 0.055) / 1.055) ** 2.4)
-
-
-_SRGB_LUT = _srgb_to_linear(np.arange(256) / 255.0)
-
-
 def _texture_mean_linear(rgba: np.ndarray) -> np.ndarray:
     """Mean linear RGB of an sRGB texture (alpha ignored); white if unreadable."""
     a = np.asarray(rgba)
@@ -331,13 +325,13 @@ def _texture_mean_linear(rgba: np.ndarray) -> np.ndarray:
         return np.ones(3)
     rgb = a[:, :, :3] if a.shape[2] >= 3 else np.repeat(a[:, :, :1], 3, axis=2)
     if rgb.dtype == np.uint8:
-        lin = _SRGB_LUT[rgb]
+        lin = SRGB8_TO_LINEAR[rgb]
     else:
         f = rgb.astype(np.float64)
         if np.issubdtype(rgb.dtype, np.integer):
             f = f / float(np.iinfo(rgb.dtype).max)
         f = np.clip(np.nan_to_num(f, nan=0.0), 0.0, 1.0)
-        lin = _srgb_to_linear(f)
+        lin = srgb_to_linear(f)
     return lin.reshape(-1, 3).mean(axis=0)
 
 

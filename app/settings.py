@@ -29,8 +29,21 @@ def _opt(
     lo: float | None = None,
     hi: float | None = None,
     choices: tuple[str, ...] | None = None,
+    label: str | None = None,
+    choice_labels: dict[str, str] | None = None,
 ) -> Any:
-    return field(default=default, metadata={"help": help, "lo": lo, "hi": hi, "choices": choices})
+    """A setting's default and what the panels, the CLI and validation know about it.
+
+    ``help`` is the CLI's comment and the panels' tooltip; ``lo``/``hi`` bound a number and
+    ``choices`` a string (both are enforced by :meth:`Settings.set`); ``label`` names the
+    control in a panel (default: the key's last part) and ``choice_labels`` a choice's entry.
+    """
+    meta = {"help": help, "lo": lo, "hi": hi, "choices": choices}
+    if label is not None:
+        meta["label"] = label
+    if choice_labels is not None:
+        meta["choice_labels"] = dict(choice_labels)
+    return field(default=default, metadata=meta)
 
 
 @dataclass
@@ -45,7 +58,16 @@ class StereoSettings:
 @dataclass
 class RenderSettings:
     path: str = _opt("deferred", "rendering path", choices=("deferred", "forward"))
-    lighting: str = _opt("compute", "deferred lighting stage", choices=("compute", "fragment"))
+    lighting: str = _opt(
+        "compute",
+        "deferred lighting stage",
+        choices=("compute", "fragment"),
+        label="lighting stage",
+        choice_labels={
+            "fragment": "Fragment (graphics pipeline)",
+            "compute": "Compute (the paper's)",
+        },
+    )
     exposure: float = _opt(1.0, "exposure before tone mapping", lo=0.0, hi=64.0)
     brightness: float = _opt(
         1.0, "dimmer: scales every light and the ambient (1 = as authored)", lo=0.0, hi=16.0
@@ -84,11 +106,12 @@ class GazeSettings:
 class TcrSettings:
     """Adaptive texture mapping (TCR paper): which terms choose each object's pyramid level."""
 
-    enabled: bool = _opt(False, "adapt texture levels per object (off: full quality)")
+    enabled: bool = _opt(False, "adapt texture levels per object (off: full quality)", label="TCR")
     preset: str = _opt(
         "ergonomics",
         "term set: psychology (d,g,l), ergonomics (d,v,l) or custom",
         choices=("psychology", "ergonomics", "custom"),
+        label="preset",
     )
     use_d: bool = _opt(True, "custom: distance term d")
     use_v: bool = _opt(True, "custom: viewpoint-motion term v (+1 while moving)")
@@ -98,14 +121,20 @@ class TcrSettings:
         "clamp",
         "paper: sample exactly level j; clamp: mipmapping, finest level j",
         choices=("paper", "clamp"),
+        label="sampling",
+        choice_labels={"paper": "paper (exactly level j)", "clamp": "clamp (mipmapping)"},
     )
     f_m: float = _opt(
-        1.0, "eye-to-screen distance f in j = floor(log2((d+f)/f)) (m)", lo=1e-6, hi=100.0
+        1.0,
+        "eye-to-screen distance f in j = floor(log2((d+f)/f)) (m)",
+        lo=1e-6,
+        hi=100.0,
+        label="eye-screen f (m)",
     )
     move_on: float = _opt(0.15, "viewpoint counts as moving above this speed", lo=0.0, hi=100.0)
     move_off: float = _opt(0.05, "... and as still again below this speed", lo=0.0, hi=100.0)
     window_s: float = _opt(0.15, "a state change must persist this long (s)", lo=0.0, hi=5.0)
-    tint: bool = _opt(False, "tint every object by its texture level")
+    tint: bool = _opt(False, "tint every object by its texture level", label="overlay")
 
 
 @dataclass
@@ -120,55 +149,89 @@ class CpsSettings:
         "is the paper's, fragment keeps it in the graphics pipeline); deferred "
         "path only",
         choices=("none", "black-mask", "blur-mask", "cps"),
+        label="mode",
     )
-    max_level: int = _opt(4, "coarsest block allowed: 2^max_level pixels square (0-5)", lo=0, hi=5)
+    max_level: int = _opt(
+        4,
+        "coarsest block allowed: 2^max_level pixels square (0-5)",
+        lo=0,
+        hi=5,
+        label="coarsest block",
+    )
     fovea_deg: float = _opt(
-        10.0, "full detail within this angle of the gaze (degrees)", lo=0.0, hi=180.0
+        10.0,
+        "full detail within this angle of the gaze (degrees)",
+        lo=0.0,
+        hi=180.0,
+        label="fovea radius",
     )
     deg_per_level: float = _opt(
-        6.0, "falloff: one level coarser per this many degrees beyond the fovea", lo=0.1, hi=180.0
+        6.0,
+        "falloff: one level coarser per this many degrees beyond the fovea",
+        lo=0.1,
+        hi=180.0,
+        label="falloff",
     )
     near_m: float = _opt(
         1.0,
         "edge ray hit this near or nearer: that side may go to max_level (m)",
         lo=0.0,
         hi=1000.0,
+        label="near (coarsest)",
     )
     far_m: float = _opt(
         6.0,
         "edge ray hit this far or farther (or none): no reduction on that side (m)",
         lo=0.0,
         hi=1000.0,
+        label="far (no reduction)",
     )
-    rays_per_side: int = _opt(5, "edge rays per side (left, right, bottom) and eye", lo=1, hi=64)
+    rays_per_side: int = _opt(
+        5, "edge rays per side (left, right, bottom) and eye", lo=1, hi=64, label="rays per side"
+    )
     dispatch: str = _opt(
         "multi",
         "compute: one dispatch per level (multi) or one in which a "
         "thread owns a 32x32 tile (single)",
         choices=("multi", "single"),
+        label="dispatch",
+        choice_labels={"multi": "One dispatch per level", "single": "Single dispatch, 32x32 tiles"},
     )
     filter: str = _opt(
         "hierarchical",
         "reconstruction of coarse blocks: none, bilinear (ordinary) or hierarchical (the paper's)",
         choices=("none", "bilinear", "hierarchical"),
+        label="filter",
+        choice_labels={
+            "none": "None (flat blocks)",
+            "bilinear": "Bilinear",
+            "hierarchical": "Hierarchical bilinear (paper)",
+        },
     )
     temporal: bool = _opt(
         False,
         "alternating temporal filter: the eyes swap strong and weak "
         "reduction each frame and blend with their previous frame",
+        label="temporal",
     )
     reproject: bool = _opt(
         True,
         "temporal: reproject the history with depth and the previous "
         "camera, rejecting disocclusions",
+        label="history",
     )
     history_weight: float = _opt(
-        0.7, "temporal: weight of the finer of the two images when blending (0.5-1)", lo=0.5, hi=1.0
+        0.7,
+        "temporal: weight of the finer of the two images when blending (0.5-1)",
+        lo=0.5,
+        hi=1.0,
+        label="finer image weight",
     )
     visualize: bool = _opt(
         False,
         "tint pixels by detail level (finest unpainted, then blue, "
         "cyan, green, yellow, red) and mark the edge-ray hits",
+        label="detail visualisation",
     )
 
 

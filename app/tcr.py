@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.color import SRGB8_TO_LINEAR, linear_to_srgb
 from app.settings import TcrSettings
 
 # ---------------------------------------------------------------------------------------------
@@ -105,13 +106,8 @@ def level_bytes(width: int, height: int, bytes_per_texel: int = 4) -> list[int]:
     return [w * h * int(bytes_per_texel) for w, h in pyramid_sizes(width, height)]
 
 
-# sRGB <-> linear. Averaging sRGB bytes directly darkens every edge (black/white becomes 128,
-# which displays as ~22% light instead of 50%); averaging light keeps each level's brightness.
-_SRGB_TO_LINEAR = np.where(
-    np.arange(256) / 255.0 <= 0.04045,
-    np.arange(256) / 255.0 / 12.92,
-    ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4,
-).astype(np.float32)
+# Averaging sRGB bytes directly darkens every edge; averaging light keeps each level's brightness.
+_SRGB_TO_LINEAR = SRGB8_TO_LINEAR.astype(np.float32)
 
 
 def _decode(rgba: np.ndarray) -> np.ndarray:
@@ -126,9 +122,7 @@ def _encode(linear: np.ndarray) -> np.ndarray:
     """float linear RGB + alpha -> uint8 sRGB RGBA (round to nearest)."""
     x = np.clip(linear, 0.0, 1.0)
     rgb = x[..., :3]
-    srgb = np.where(
-        rgb <= 0.0031308, rgb * 12.92, 1.055 * np.power(rgb, 1.0 / 2.4, dtype=np.float32) - 0.055
-    )
+    srgb = linear_to_srgb(rgb.astype(np.float32, copy=False))
     out = np.empty(linear.shape, np.uint8)
     out[..., :3] = np.rint(np.clip(srgb, 0.0, 1.0) * 255.0)
     out[..., 3] = np.rint(x[..., 3] * 255.0)

@@ -24,6 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from app.color import srgb8_to_linear
 from app.scene import Material, Mesh, PointLight, Scene, Texture, Viewpoint
 from assets.textures import PAINTING_ASPECTS, checker_quadrants, make_textures
 
@@ -64,12 +65,7 @@ def rot_z(deg: float) -> np.ndarray:
 
 def srgb(r: int, g: int, b: int, a: float = 1.0) -> tuple[float, float, float, float]:
     """An sRGB 0..255 colour as the linear RGBA a :class:`Material` wants."""
-
-    def lin(c: int) -> float:
-        v = c / 255.0
-        return v / 12.92 if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
-
-    return (lin(r), lin(g), lin(b), a)
+    return srgb8_to_linear(r, g, b, a)
 
 
 # -- mesh building ------------------------------------------------------------------------------

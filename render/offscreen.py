@@ -10,7 +10,7 @@ from collections.abc import Callable
 import numpy as np
 
 from app.frame import FrameInput
-from app.indirect import PhotonCache
+from app.indirect import PhotonService
 from app.scene import Scene
 from app.settings import Settings
 from render.context import create_headless
@@ -32,7 +32,7 @@ class OffscreenHost:
         self.width = max(2, int(width) // 2 * 2)
         self.height = max(1, int(height))
         self.settings = settings or Settings()
-        self.photon_cache = PhotonCache()
+        self.photon_cache = PhotonService()
         self.trace_progress = trace_progress
         self.scene: Scene | None = None
         self.ctx = create_headless()

@@ -1,7 +1,8 @@
 """Coarse pixel shading panel: mitigation mode, detail levels, edge rays, pipeline, temporal
 filter, the detail visualisation with its legend, and live statistics.
 
-Built on the settings model (every control writes through ``Settings.set``, keys ``cps.*``);
+Built on the settings model (controls from :class:`ui.panels.SettingsForm`, every edit through
+``Settings.set``, keys ``cps.*``, a refused value shown in the panel);
 the live part (share of pixels per level, lighting samples, edge-ray caps and distances) is
 polled from a ``stats()`` callable at 4 Hz, so the renderer never pushes into Qt.
 """
@@ -16,35 +17,23 @@ from typing import Any
 from PyQt6.QtCore import QRectF, Qt, QTimer
 from PyQt6.QtGui import QColor, QPainter, QPen
 from PyQt6.QtWidgets import (
-    QCheckBox,
     QComboBox,
-    QDoubleSpinBox,
     QFormLayout,
     QGridLayout,
     QGroupBox,
     QLabel,
-    QSpinBox,
     QVBoxLayout,
     QWidget,
 )
 
-from app.settings import Settings, SettingsError
+from app.cps import MAX_LEVEL
+from app.settings import Settings
 from render.passes import CPS_LEVEL_COLOURS
+from ui.panels import SettingsForm, setting_label
 
 log = logging.getLogger(__name__)
 
-LEVELS = 6  # s = 0..5: blocks of 1x1 .. 32x32 pixels
-#: Readable names of the choices; the choices themselves come from the settings model, so a mode
-#: added there shows up here (under its key until it gets a label).
-LABELS = {
-    "pipeline": {"fragment": "Fragment (graphics pipeline)", "compute": "Compute (the paper's)"},
-    "cps.dispatch": {"multi": "One dispatch per level", "single": "Single dispatch, 32x32 tiles"},
-    "cps.filter": {
-        "none": "None (flat blocks)",
-        "bilinear": "Bilinear",
-        "hierarchical": "Hierarchical bilinear (paper)",
-    },
-}
+LEVELS = MAX_LEVEL + 1  # s = 0..MAX_LEVEL: blocks of 1x1 .. 32x32 pixels
 #: The mitigation control: (cps.mode, lighting stage or None for "as it is"), label.
 MITIGATIONS = (
     (("none", "fragment"), "None, fragment shader (the baseline)"),
@@ -124,10 +113,11 @@ class CpsPanel(QWidget):
         super().__init__(parent)
         self.settings = settings
         self.stats = stats
-        self.on_change = on_change
-        self.controls: dict[str, QWidget] = {}
+        self.form = SettingsForm(settings, on_change, after_set=self.refresh)
         self._stats_failed = False
         layout = QVBoxLayout(self)
+        layout.addWidget(self.form.status)
+        add = self.form.add_row
 
         box = QGroupBox("Mitigation")
         form = QFormLayout(box)
@@ -137,58 +127,44 @@ class CpsPanel(QWidget):
         self.mode = QComboBox()
         for data, text in MITIGATIONS:
             self.mode.addItem(text, data)
+        self.mode.setToolTip(str(settings.describe("cps.mode").get("help", "")))
         self.mode.currentIndexChanged.connect(self._set_mitigation)
-        self._register("cps.mode", self.mode)
-        form.addRow("mode", self.mode)
+        form.addRow(setting_label(settings, "cps.mode"), self.mode)
         layout.addWidget(box)
+        self.controls: dict[str, QWidget] = {"cps.mode": self.mode}
 
         box = QGroupBox("Detail levels")
         form = QFormLayout(box)
-        self.max_level = self._combo("cps.max_level", [(s, block_label(s)) for s in range(LEVELS)])
-        form.addRow("coarsest block", self.max_level)
-        self.fovea = self._spin("cps.fovea_deg", " deg", 1, 1.0)
-        form.addRow("fovea radius", self.fovea)
-        self.falloff = self._spin("cps.deg_per_level", " deg/level", 1, 1.0)
-        form.addRow("falloff", self.falloff)
+        levels = {s: block_label(s) for s in range(LEVELS)}
+        self.max_level = add(form, "cps.max_level", items=levels)
+        self.fovea = add(form, "cps.fovea_deg", suffix=" deg", decimals=1, step=1.0)
+        self.falloff = add(form, "cps.deg_per_level", suffix=" deg/level", decimals=1, step=1.0)
         layout.addWidget(box)
 
         box = QGroupBox("Edge rays")
         form = QFormLayout(box)
-        self.near = self._spin("cps.near_m", " m", 2, 0.25)
-        form.addRow("near (coarsest)", self.near)
-        self.far = self._spin("cps.far_m", " m", 2, 0.25)
-        form.addRow("far (no reduction)", self.far)
-        self.rays = QSpinBox()
-        self._limits(self.rays, "cps.rays_per_side")
-        self.rays.setKeyboardTracking(False)
-        self.rays.valueChanged.connect(lambda v: self._set("cps.rays_per_side", v))
-        self._register("cps.rays_per_side", self.rays)
-        form.addRow("rays per side", self.rays)
+        self.near = add(form, "cps.near_m", suffix=" m", decimals=2, step=0.25)
+        self.far = add(form, "cps.far_m", suffix=" m", decimals=2, step=0.25)
+        self.rays = add(form, "cps.rays_per_side", step=1)
         layout.addWidget(box)
 
         box = QGroupBox("Coarse shading")
         form = QFormLayout(box)
-        self.pipeline = self._choice_combo(self.pipeline_key, LABELS["pipeline"])
-        form.addRow("pipeline", self.pipeline)
-        self.dispatch = self._choice_combo("cps.dispatch")
-        form.addRow("dispatch", self.dispatch)
-        self.filter = self._choice_combo("cps.filter")
-        form.addRow("filter", self.filter)
+        self.pipeline = add(form, self.pipeline_key, label="pipeline")
+        self.dispatch = add(form, "cps.dispatch")
+        self.filter = add(form, "cps.filter")
         layout.addWidget(box)
 
         box = QGroupBox("Alternating temporal filter")
         form = QFormLayout(box)
-        self.temporal = self._check("cps.temporal", "on")
-        form.addRow("temporal", self.temporal)
-        self.reproject = self._check("cps.reproject", "reproject history")
-        form.addRow("history", self.reproject)
-        self.history = self._spin("cps.history_weight", "", 2, 0.05)
-        form.addRow("finer image weight", self.history)
+        self.temporal = add(form, "cps.temporal", text="on")
+        self.reproject = add(form, "cps.reproject", text="reproject history")
+        self.history = add(form, "cps.history_weight", decimals=2, step=0.05)
         layout.addWidget(box)
 
         box = QGroupBox("Detail visualisation")
         grid = QGridLayout(box)
-        self.visualize = self._check("cps.visualize", "tint pixels by detail level")
+        self.visualize = self.form.control("cps.visualize", text="tint pixels by detail level")
         grid.addWidget(self.visualize, 0, 0, 1, 6)
         for level, colour in enumerate(CPS_LEVEL_COLOURS[:LEVELS]):
             swatch = QLabel()
@@ -229,6 +205,7 @@ class CpsPanel(QWidget):
             label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         layout.addWidget(box)
         layout.addStretch(1)
+        self.controls.update(self.form.editors)
 
         self.refresh()
         self.poll()
@@ -236,68 +213,22 @@ class CpsPanel(QWidget):
         self.timer.timeout.connect(self.poll)
         self.timer.start(250)
 
-    # -- building ------------------------------------------------------------------------------
-
-    def _register(self, key: str, widget: QWidget) -> None:
-        self.controls[key] = widget
-        widget.setToolTip(str(self.settings.describe(key).get("help", "")))
-
-    def _limits(self, spin: QSpinBox | QDoubleSpinBox, key: str) -> None:
-        meta = self.settings.describe(key)
-        lo = meta.get("lo")
-        hi = meta.get("hi")
-        spin.setRange(lo if lo is not None else -1e9, hi if hi is not None else 1e9)
-
-    def _combo(self, key: str, items: Sequence[tuple[Any, str]]) -> QComboBox:
-        w = QComboBox()
-        for value, text in items:
-            w.addItem(text, value)
-        w.currentIndexChanged.connect(lambda i, k=key, c=w: self._set(k, c.itemData(i)))
-        self._register(key, w)
-        return w
-
-    def _choice_combo(self, key: str, labels: dict[str, str] | None = None) -> QComboBox:
-        names = LABELS.get(key, {}) if labels is None else labels
-        choices = self.settings.describe(key).get("choices") or ()
-        return self._combo(key, [(c, names.get(c, c)) for c in choices])
-
-    def _spin(self, key: str, suffix: str, decimals: int, step: float) -> QDoubleSpinBox:
-        w = QDoubleSpinBox()
-        w.setDecimals(decimals)
-        self._limits(w, key)
-        w.setSingleStep(step)
-        w.setSuffix(suffix)
-        w.setKeyboardTracking(False)  # one change per finished edit, not per keystroke
-        w.valueChanged.connect(lambda v, k=key: self._set(k, v))
-        self._register(key, w)
-        return w
-
-    def _check(self, key: str, text: str) -> QCheckBox:
-        w = QCheckBox(text)
-        w.toggled.connect(lambda v, k=key: self._set(k, v))
-        self._register(key, w)
-        return w
-
     # -- model <-> widgets ---------------------------------------------------------------------
 
-    def _set(self, key: str, value: object) -> None:
-        try:
-            self.settings.set(key, value)
-        except SettingsError as exc:
-            log.warning("%s", exc)  # a value the model refuses: show the model's value again
-            self.refresh()
-            return
-        self.refresh()
-        if self.on_change:
-            self.on_change(key)
+    @property
+    def on_change(self) -> Callable[[str], None] | None:
+        return self.form.on_change
+
+    @on_change.setter
+    def on_change(self, callback: Callable[[str], None] | None) -> None:
+        self.form.on_change = callback
 
     def _set_mitigation(self, index: int) -> None:
         mode, lighting = self.mode.itemData(index)
         if lighting is not None and self.settings.get(self.pipeline_key) != lighting:
-            self.settings.set(self.pipeline_key, lighting)
-            if self.on_change:
-                self.on_change(self.pipeline_key)
-        self._set("cps.mode", mode)
+            if not self.form.set(self.pipeline_key, lighting):
+                return
+        self.form.set("cps.mode", mode)
 
     def _mitigation_index(self) -> int:
         mode, lighting = self.settings.cps.mode, self.settings.get(self.pipeline_key)
@@ -309,30 +240,10 @@ class CpsPanel(QWidget):
     def refresh(self) -> None:
         """Show the model's values (after a change here, a preset load, or the CLI)."""
         c = self.settings.cps
-        widgets = list(self.controls.values())
-        for w in widgets:
-            w.blockSignals(True)
-        try:
-            self.mode.setCurrentIndex(self._mitigation_index())
-            for combo, value in (
-                (self.max_level, c.max_level),
-                (self.pipeline, self.settings.get(self.pipeline_key)),
-                (self.dispatch, c.dispatch),
-                (self.filter, c.filter),
-            ):
-                combo.setCurrentIndex(combo.findData(value))
-            self.fovea.setValue(c.fovea_deg)
-            self.falloff.setValue(c.deg_per_level)
-            self.near.setValue(c.near_m)
-            self.far.setValue(c.far_m)
-            self.rays.setValue(c.rays_per_side)
-            self.temporal.setChecked(c.temporal)
-            self.reproject.setChecked(c.reproject)
-            self.history.setValue(c.history_weight)
-            self.visualize.setChecked(c.visualize)
-        finally:
-            for w in widgets:
-                w.blockSignals(False)
+        self.form.refresh()
+        self.mode.blockSignals(True)
+        self.mode.setCurrentIndex(self._mitigation_index())
+        self.mode.blockSignals(False)
         # Controls that mean nothing in the current configuration are greyed out, not hidden.
         self.dispatch.setEnabled(self.settings.get(self.pipeline_key) == "compute")
         self.reproject.setEnabled(c.temporal)

@@ -8,7 +8,6 @@ be loaded gives an error dialog and the current scene stays.
 from __future__ import annotations
 
 import concurrent.futures
-import copy
 import json
 import logging
 import os
@@ -32,10 +31,9 @@ from PyQt6.QtWidgets import (
 
 from app import scenes
 from app.fileio import atomic_write_bytes, atomic_write_json
-from app.indirect import PhotonCache, map_key, trace, wanted
+from app.indirect import PhotonService, wanted
 from app.loaders import SUPPORTED_EXTENSIONS, SceneLoadError
 from app.paths import CameraPath
-from app.photons import TracingCancelled
 from app.scene import Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings, SettingsError
@@ -78,13 +76,8 @@ class MainWindow(QMainWindow):
         self._load_poll.timeout.connect(self._check_load)
         self._loading: tuple[concurrent.futures.Future, str, QProgressDialog] | None = None
         self.normal_mode = False
-        # Photon maps are traced on their own worker thread; the view keeps rendering meanwhile.
-        self.photon_cache = PhotonCache()
-        self._tracer = concurrent.futures.ThreadPoolExecutor(max_workers=1)
-        self._tracing: tuple[concurrent.futures.Future, tuple, Scene, list[bool]] | None = None
-        self._trace_progress = 0.0
-        self._trace_started = 0.0
-        self._trace_failed: tuple | None = None  # key whose tracing failed (not retried)
+        # Photon maps are traced on the service's worker thread; the view keeps rendering meanwhile.
+        self.photon_cache = PhotonService()
         self._photons_shown: object = None
         self._photon_timer = QTimer(self)
         self._photon_timer.timeout.connect(self._check_photons)
@@ -348,46 +341,15 @@ class MainWindow(QMainWindow):
 
     # -- photon mapping ------------------------------------------------------------------------
     def _check_photons(self) -> None:
-        """Keep the view's photon map in step with the scene and the settings: trace on the
-        worker thread when a new map is needed, hand it over when done, drop it when the
-        scene no longer gets indirect light."""
-        scene, s = self.session.scene, self.settings.photons
-        if self._tracing is not None:
-            future, key, traced_scene, cancel = self._tracing
-            if not future.done():
-                if not wanted(s, scene) or key != map_key(s, scene):
-                    cancel[0] = True  # settings moved on: stop, then trace the new one
-                return
-            self._tracing = None
-            try:
-                photons = future.result()
-            except TracingCancelled:
-                photons = None
-            except Exception as exc:  # noqa: BLE001 - a tracer bug must not take the window
-                log.exception("photon tracing failed")
-                self._trace_failed = key
-                self.show_error("Cannot trace photons", f"{traced_scene.name}: {exc}")
-                photons = None
-            if photons is not None:
-                self.photon_cache.store(key, traced_scene, photons)
-                self.photon_cache.trace_ms = (time.monotonic() - self._trace_started) * 1e3
-        current = self.photon_cache.current(s, scene)
+        """Keep the view's photon map in step with the scene and the settings; the service
+        traces on its worker thread and hands the map over when done."""
+        current = self.photon_cache.poll(self.settings.photons, self.session.scene)
+        error = self.photon_cache.take_error()
+        if error:
+            self.show_error("Cannot trace photons", error)
         if current is not self._photons_shown:
             self._photons_shown = current
             self.view.set_photons(current)
-        if current is None and wanted(s, scene) and self._tracing is None:
-            key = map_key(s, scene)
-            if key == self._trace_failed:
-                return
-            cancel = [False]
-            self._trace_progress = 0.0
-            self._trace_started = time.monotonic()
-
-            def progress(fraction: float) -> None:
-                self._trace_progress = fraction  # read by the panel's 4 Hz poll
-
-            future = self._tracer.submit(trace, copy.copy(s), scene, progress, lambda: cancel[0])
-            self._tracing = (future, key, scene, cancel)
 
     def _photon_stats(self) -> dict:
         scene, s = self.session.scene, self.settings.photons
@@ -395,12 +357,12 @@ class MainWindow(QMainWindow):
         if not wanted(s, scene):
             why = "turned off" if s.enabled == "off" else "the scene does not ask for it"
             stats["status"] = f"off ({why}; set enabled to on to add it)"
-        elif self._tracing is not None:
+        elif self.photon_cache.tracing:
             stats["status"] = "tracing photons…"
-            stats["tracing"] = self._trace_progress
+            stats["tracing"] = self.photon_cache.progress
         elif stats.get("error"):
             stats["status"] = f"unavailable: {stats['error']}"
-        elif self._trace_failed == map_key(s, scene):
+        elif self.photon_cache.failed(s, scene):
             stats["status"] = "tracing failed (see the log)"
         else:
             why = "turned on" if s.enabled == "on" else "the scene asks for it"
@@ -504,9 +466,7 @@ class MainWindow(QMainWindow):
         QApplication.instance().removeEventFilter(self)
         self.view.release_gl()
         self._loader.shutdown(wait=False, cancel_futures=True)
-        if self._tracing is not None:
-            self._tracing[3][0] = True
-        self._tracer.shutdown(wait=False, cancel_futures=True)
+        self.photon_cache.close()
         super().closeEvent(event)
 
 

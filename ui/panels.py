@@ -1,12 +1,19 @@
-"""Panels built from the settings model, and the evaluation bar.
+"""Settings controls built from the settings model, and the evaluation bar.
 
-Widgets are generated from the dataclass tree (type, range, choices, help) so a new setting
-appears in the panel, the CLI and presets at once. Statistics are polled at 4 Hz.
+Every panel builds its controls one way, with :class:`SettingsForm`: a dotted key's metadata
+gives the control (check box for a bool, combo box for choices, spin box for an int or a float
+within its range), its label and its tooltip (the help text), so a new setting appears in the
+panels, the CLI and presets at once. Every edit goes through :meth:`SettingsForm.set`, which
+shows a value the model refuses in the panel's status line instead of raising in a Qt slot.
+Statistics are polled at 4 Hz.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import logging
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
 
 from PyQt6.QtCore import Qt, QTimer
 from PyQt6.QtWidgets import (
@@ -18,15 +25,167 @@ from PyQt6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QScrollArea,
+    QSpinBox,
     QVBoxLayout,
     QWidget,
 )
 
-from app.settings import Settings
+from app.settings import Settings, SettingsError
+
+log = logging.getLogger(__name__)
+
+_INT_MIN, _INT_MAX = -(2**31), 2**31 - 1  # what a QSpinBox holds
+
+
+def setting_label(settings: Settings, key: str) -> str:
+    """The control's name: the metadata's ``label``, else the key's last part in words."""
+    return str(settings.describe(key).get("label") or key.rsplit(".", 1)[-1].replace("_", " "))
+
+
+class SettingsForm:
+    """Builds the controls for settings keys and is their one way into the model.
+
+    ``on_change(key)`` hears every accepted edit; ``after_set()`` (the panel's refresh, say)
+    runs after each edit, accepted or not. ``status`` is the panel's status line: a refused
+    value shows there, and the controls show the model's value again.
+    """
+
+    def __init__(
+        self,
+        settings: Settings,
+        on_change: Callable[[str], None] | None = None,
+        after_set: Callable[[], None] | None = None,
+    ) -> None:
+        self.settings = settings
+        self.on_change = on_change
+        self.after_set = after_set
+        self.editors: dict[str, QWidget] = {}
+        self.status = QLabel()
+        self.status.setWordWrap(True)
+        self.status.setStyleSheet("color: #d04040")
+        self.status.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.status.hide()
+
+    # -- building ------------------------------------------------------------------------------
+    def control(
+        self,
+        key: str,
+        *,
+        text: str = "",
+        items: Mapping[Any, str] | None = None,
+        suffix: str = "",
+        decimals: int = 3,
+        step: float | None = None,
+    ) -> QWidget:
+        """The control for ``key``, from its metadata and current value.
+
+        A bool is a check box (``text`` beside it); choices are a combo box whose entries carry
+        the choice as data and show its ``choice_labels`` text; ``items`` (value -> text) makes
+        a combo box of other values (an int's levels, say); an int is a spin box and a float a
+        spin box with ``decimals``, both limited to the key's range.
+        """
+        meta = self.settings.describe(key)
+        value = self.settings.get(key)
+        w: QWidget
+        if isinstance(value, bool):
+            w = QCheckBox(text)
+            w.toggled.connect(lambda v, k=key: self.set(k, v))
+        elif meta.get("choices") or items is not None:
+            if items is None:
+                names = meta.get("choice_labels") or {}
+                items = {c: names.get(c, c) for c in meta["choices"]}
+            w = QComboBox()
+            for data, label in items.items():
+                w.addItem(label, data)
+            w.currentIndexChanged.connect(lambda i, k=key, c=w: self.set(k, c.itemData(i)))
+        elif isinstance(value, int):
+            w = QSpinBox()
+            w.setRange(
+                int(max(meta.get("lo") if meta.get("lo") is not None else _INT_MIN, _INT_MIN)),
+                int(min(meta.get("hi") if meta.get("hi") is not None else _INT_MAX, _INT_MAX)),
+            )
+            w.setSingleStep(int(step) if step else max(1, round(abs(value) * 0.05)))
+            w.setSuffix(suffix)
+            w.setKeyboardTracking(False)  # one change per finished edit, not per keystroke
+            w.valueChanged.connect(lambda v, k=key: self.set(k, v))
+        else:
+            w = QDoubleSpinBox()
+            w.setDecimals(decimals)
+            # The shown range is rounded to the decimals: round the lower end up, so the
+            # smallest value the box offers is one the model accepts.
+            scale = 10.0**decimals
+            lo, hi = meta.get("lo"), meta.get("hi")
+            w.setRange(
+                math.ceil(lo * scale - 1e-9) / scale if lo is not None else -1e9,
+                math.floor(hi * scale + 1e-9) / scale if hi is not None else 1e9,
+            )
+            w.setSingleStep(step if step else max(0.01, abs(float(value)) * 0.05))
+            w.setSuffix(suffix)
+            w.setKeyboardTracking(False)
+            w.valueChanged.connect(lambda v, k=key: self.set(k, v))
+        w.setToolTip(str(meta.get("help", "")))
+        self.editors[key] = w
+        w.blockSignals(True)  # showing the model's value is not an edit
+        self._show(key, w)
+        w.blockSignals(False)
+        return w
+
+    def add_row(self, form: QFormLayout, key: str, *, label: str | None = None, **kw) -> QWidget:
+        """:meth:`control` for ``key`` as a row of ``form``, named by its label (or ``label``)."""
+        w = self.control(key, **kw)
+        name = QLabel(label or setting_label(self.settings, key))
+        name.setToolTip(w.toolTip())
+        form.addRow(name, w)
+        return w
+
+    # -- model <-> widgets ---------------------------------------------------------------------
+    def set(self, key: str, value: object) -> bool:
+        """Write ``value`` through :meth:`Settings.set`; False (and the reason in the status
+        line) when the model refuses it."""
+        try:
+            self.settings.set(key, value)
+        except SettingsError as exc:
+            log.warning("%s", exc)
+            self.show_error(str(exc))
+            self.refresh()
+            if self.after_set:
+                self.after_set()
+            return False
+        self.show_error(None)
+        if self.after_set:
+            self.after_set()
+        if self.on_change:
+            self.on_change(key)
+        return True
+
+    def show_error(self, message: str | None) -> None:
+        """Show ``message`` in the status line (None clears it)."""
+        self.status.setText(message or "")
+        self.status.setVisible(bool(message))
+
+    def refresh(self) -> None:
+        """Show the model's values again (after a change elsewhere, or a preset load)."""
+        for key, w in self.editors.items():
+            w.blockSignals(True)
+            try:
+                self._show(key, w)
+            finally:
+                w.blockSignals(False)
+
+    def _show(self, key: str, w: QWidget) -> None:
+        value = self.settings.get(key)
+        if isinstance(w, QCheckBox):
+            w.setChecked(bool(value))
+        elif isinstance(w, QComboBox):
+            w.setCurrentIndex(w.findData(value))
+        elif isinstance(w, QSpinBox):
+            w.setValue(int(value))
+        elif isinstance(w, QDoubleSpinBox):
+            w.setValue(float(value))
 
 
 class SettingsPanel(QScrollArea):
-    """One group per settings section; every edit goes through ``Settings.set``."""
+    """One group per settings section, every key a row built by :class:`SettingsForm`."""
 
     def __init__(
         self,
@@ -37,69 +196,37 @@ class SettingsPanel(QScrollArea):
     ) -> None:
         super().__init__(parent)
         self.settings = settings
-        self.on_change = on_change
-        self.editors: dict[str, QWidget] = {}
+        self.form = SettingsForm(settings, on_change)
+        self.editors = self.form.editors
         body = QWidget()
         layout = QVBoxLayout(body)
+        layout.addWidget(self.form.status)
         for section in sections:
             box = QGroupBox(section.capitalize())
-            form = QFormLayout(box)
+            rows = QFormLayout(box)
             for key in settings.keys():
                 if key.split(".")[0] == section:
-                    editor = self._editor(key)
-                    self.editors[key] = editor
-                    label = QLabel(key.split(".", 1)[1].replace("_", " "))
-                    label.setToolTip(settings.describe(key).get("help", ""))
-                    editor.setToolTip(label.toolTip())
-                    form.addRow(label, editor)
+                    self.form.add_row(rows, key)
             layout.addWidget(box)
         layout.addStretch(1)
         self.setWidget(body)
         self.setWidgetResizable(True)
 
-    def _editor(self, key: str) -> QWidget:
-        meta = self.settings.describe(key)
-        value = self.settings.get(key)
-        if isinstance(value, bool):
-            w = QCheckBox()
-            w.setChecked(value)
-            w.toggled.connect(lambda v, k=key: self._set(k, v))
-            return w
-        if meta.get("choices"):
-            w = QComboBox()
-            w.addItems(list(meta["choices"]))
-            w.setCurrentText(str(value))
-            w.currentTextChanged.connect(lambda v, k=key: self._set(k, v))
-            return w
-        w = QDoubleSpinBox()
-        w.setDecimals(3)
-        w.setRange(
-            meta.get("lo") if meta.get("lo") is not None else -1e9,
-            meta.get("hi") if meta.get("hi") is not None else 1e9,
-        )
-        w.setSingleStep(max(0.01, abs(float(value)) * 0.05))
-        w.setValue(float(value))
-        w.setKeyboardTracking(False)
-        w.valueChanged.connect(lambda v, k=key: self._set(k, v))
-        return w
+    @property
+    def on_change(self) -> Callable[[str], None] | None:
+        return self.form.on_change
 
-    def _set(self, key: str, value: object) -> None:
-        self.settings.set(key, value)
-        if self.on_change:
-            self.on_change(key)
+    @on_change.setter
+    def on_change(self, callback: Callable[[str], None] | None) -> None:
+        self.form.on_change = callback
+
+    @property
+    def status(self) -> QLabel:
+        return self.form.status
 
     def refresh(self) -> None:
         """Show the model's values again (after a preset was loaded)."""
-        for key, w in self.editors.items():
-            value = self.settings.get(key)
-            w.blockSignals(True)
-            if isinstance(w, QCheckBox):
-                w.setChecked(bool(value))
-            elif isinstance(w, QComboBox):
-                w.setCurrentText(str(value))
-            elif isinstance(w, QDoubleSpinBox):
-                w.setValue(float(value))
-            w.blockSignals(False)
+        self.form.refresh()
 
 
 class EvaluationBar(QWidget):

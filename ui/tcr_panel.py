@@ -1,7 +1,8 @@
 """TCR control panel: term toggles and presets, mode, dimmer, state diagram, level legend.
 
-Built on the settings model (every control writes through ``Settings.set``) and polled at 4 Hz
-for the live parts (the lit state, the gazed object's level and why).
+Built on the settings model (controls from :class:`ui.panels.SettingsForm`, every edit through
+``Settings.set``, a refused value shown in the panel) and polled at 4 Hz for the live parts
+(the lit state, the gazed object's level and why).
 """
 
 from __future__ import annotations
@@ -12,8 +13,6 @@ from PyQt6.QtCore import QRectF, Qt, QTimer
 from PyQt6.QtGui import QColor, QPainter, QPen
 from PyQt6.QtWidgets import (
     QCheckBox,
-    QComboBox,
-    QDoubleSpinBox,
     QFormLayout,
     QGridLayout,
     QGroupBox,
@@ -27,6 +26,7 @@ from PyQt6.QtWidgets import (
 from app.session import Session
 from app.tcr import PRESETS, phase_name, terms_from_settings
 from render.passes import LEVEL_TINTS
+from ui.panels import SettingsForm, setting_label
 
 STATES = (
     (0, "still", "gaze moves", "d, l"),
@@ -76,43 +76,33 @@ class TcrPanel(QWidget):
         super().__init__(parent)
         self.session = session
         self.settings = session.settings
-        self.on_change = on_change
         layout = QVBoxLayout(self)
 
+        self.form = SettingsForm(self.settings, on_change, after_set=self.refresh)
+        layout.addWidget(self.form.status)
         box = QGroupBox("Adaptive texture mapping")
         form = QFormLayout(box)
-        self.enabled = QCheckBox("on")
-        self.enabled.toggled.connect(lambda v: self._set("tcr.enabled", v))
-        form.addRow("TCR", self.enabled)
-        self.preset = QComboBox()
-        self.preset.addItems(["psychology", "ergonomics", "custom"])
-        self.preset.currentTextChanged.connect(lambda v: self._set("tcr.preset", v))
-        form.addRow("preset", self.preset)
+        self.enabled = self.form.add_row(form, "tcr.enabled", text="on")
+        self.preset = self.form.add_row(form, "tcr.preset")
         terms_row = QHBoxLayout()
         self.terms: dict[str, QCheckBox] = {}
         for term in "dvgl":
+            # The terms a preset implies: derived, so not one setting each (see _set_term).
             cb = QCheckBox(term)
+            cb.setToolTip(str(self.settings.describe(f"tcr.use_{term}").get("help", "")))
             cb.toggled.connect(lambda v, t=term: self._set_term(t, v))
             self.terms[term] = cb
             terms_row.addWidget(cb)
         form.addRow("terms", terms_row)
-        self.mode = QComboBox()
-        self.mode.addItems(["clamp", "paper"])
-        self.mode.currentTextChanged.connect(lambda v: self._set("tcr.mode", v))
-        form.addRow("sampling", self.mode)
-        self.f = QDoubleSpinBox()
-        self.f.setRange(0.01, 100.0)
-        self.f.setDecimals(2)
-        self.f.setSingleStep(0.1)
-        self.f.valueChanged.connect(lambda v: self._set("tcr.f_m", v))
-        form.addRow("eye-screen f (m)", self.f)
+        self.mode = self.form.add_row(form, "tcr.mode")
+        self.f = self.form.add_row(form, "tcr.f_m", decimals=2, step=0.1)
+        # The dimmer as a slider over 0..1 (the model allows brighter; the slider stops at 1).
         self.dimmer = QSlider(Qt.Orientation.Horizontal)
         self.dimmer.setRange(0, 100)
-        self.dimmer.valueChanged.connect(lambda v: self._set("render.brightness", v / 100.0))
-        form.addRow("brightness", self.dimmer)
-        self.tint = QCheckBox("tint objects by level")
-        self.tint.toggled.connect(lambda v: self._set("tcr.tint", v))
-        form.addRow("overlay", self.tint)
+        self.dimmer.setToolTip(str(self.settings.describe("render.brightness").get("help", "")))
+        self.dimmer.valueChanged.connect(lambda v: self.form.set("render.brightness", v / 100.0))
+        form.addRow(setting_label(self.settings, "render.brightness"), self.dimmer)
+        self.tint = self.form.add_row(form, "tcr.tint", text="tint objects by level")
         layout.addWidget(box)
 
         legend = QGroupBox("Level legend")
@@ -145,11 +135,13 @@ class TcrPanel(QWidget):
         self.timer.timeout.connect(self.poll)
         self.timer.start(250)
 
-    def _set(self, key: str, value: object) -> None:
-        self.settings.set(key, value)
-        self.refresh()
-        if self.on_change:
-            self.on_change(key)
+    @property
+    def on_change(self) -> Callable[[str], None] | None:
+        return self.form.on_change
+
+    @on_change.setter
+    def on_change(self, callback: Callable[[str], None] | None) -> None:
+        self.form.on_change = callback
 
     def _set_term(self, term: str, value: bool) -> None:
         t = self.settings.tcr
@@ -159,29 +151,16 @@ class TcrPanel(QWidget):
             for name in "dvgl":
                 self.settings.set(f"tcr.use_{name}", getattr(base, name))
             self.settings.set("tcr.preset", "custom")
-        self._set(f"tcr.use_{term}", value)
+        self.form.set(f"tcr.use_{term}", value)
 
     def refresh(self) -> None:
         """Show the model's values (after a change here, a preset load, or the CLI)."""
-        t = self.settings.tcr
-        terms = terms_from_settings(t)
-        widgets = (
-            self.enabled,
-            self.preset,
-            self.mode,
-            self.f,
-            self.dimmer,
-            self.tint,
-            *self.terms.values(),
-        )
+        self.form.refresh()
+        terms = terms_from_settings(self.settings.tcr)
+        widgets = (self.dimmer, *self.terms.values())
         for w in widgets:
             w.blockSignals(True)
-        self.enabled.setChecked(t.enabled)
-        self.preset.setCurrentText(t.preset)
-        self.mode.setCurrentText(t.mode)
-        self.f.setValue(t.f_m)
         self.dimmer.setValue(round(min(self.settings.render.brightness, 1.0) * 100))
-        self.tint.setChecked(t.tint)
         for name, cb in self.terms.items():
             cb.setChecked(getattr(terms, name))
         for w in widgets:
