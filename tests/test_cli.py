@@ -80,6 +80,7 @@ def test_bench_writes_the_documented_fields(tmp_path):
     assert all(p["median_ms"] >= 0 for p in r["passes"].values())
     assert r["texture_resident_bytes"] > 0 and r["shaded_samples"] > 0
     assert r["settings"]["render"]["path"] == "forward" and r["errors"] == []
+    assert 0 < r["scene_load_s"] < 600  # the showroom's texture set is built in that time
 
 
 @pytest.mark.parametrize(

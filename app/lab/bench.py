@@ -52,13 +52,15 @@ def _open(
 ):
     from render.offscreen import OffscreenHost  # GL only when a run really renders
 
+    start = time.perf_counter()
     scene = scenes.resolve(scene_name)
+    load_s = time.perf_counter() - start
     session = Session(settings)
     session.set_scene(scene, path)
     host = OffscreenHost(*size, settings, trace_progress=TraceProgress())
     host.renderer.photons.measure = True  # per-eye gather time (waits for the GPU per eye)
     host.set_scene(scene)
-    return scene, session, host
+    return scene, session, host, load_s
 
 
 class TraceProgress:
@@ -90,7 +92,7 @@ def render_frame(
     path: CameraPath | None = None,
 ) -> np.ndarray:
     """Render frame ``frame`` of the scene's path and save it as a PNG (both eyes)."""
-    _scene, session, host = _open(scene_name, size, settings, path)
+    _scene, session, host, _load_s = _open(scene_name, size, settings, path)
     try:
         session.apply_path_frame(frame)
         host.set_text_image(None)
@@ -124,7 +126,7 @@ def bench(
     shared by the runs of an experiment or a study) and the error of this setting against it
     is measured (display values): for the whole frame and for the gazed object alone.
     """
-    scene, session, host = _open(scene_name, size, settings, path)
+    scene, session, host, load_s = _open(scene_name, size, settings, path)
     assert session.path is not None
     stride = max(1, int(stride))
     total = frames if frames > 0 else -(-session.path.frame_count() // stride)
@@ -210,6 +212,7 @@ def bench(
             "lights": len(scene.lights),
             "textures": len(scene.textures),
         },
+        scene_load_s=load_s,
         path=session.path.scene or scene.name,
         size={"width": size[0], "height": size[1], "eye": [size[0] // 2, size[1]]},
         device=device,
@@ -308,7 +311,7 @@ def demo(
 ) -> dict:
     """The no-display fallback: walk the default path, save stereo screenshots and a summary."""
     out_dir = Path(out_dir)
-    scene, session, host = _open(scene_name, size, settings)
+    scene, session, host, _load_s = _open(scene_name, size, settings)
     assert session.path is not None
     total = session.path.frame_count()
     every = max(1, round(every_s / FIXED_DT))

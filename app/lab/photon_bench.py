@@ -202,7 +202,7 @@ def peer_comparison(
     settings.photons.enabled = "on"
     settings.photons.photons = count
     settings.photons.radius_m = radius
-    _scene, session, host = _open(scene_name, size, settings)
+    _scene, session, host, _load_s = _open(scene_name, size, settings)
     try:
         session.apply_path_frame(path_frame)
         frame = session.frame_input(*host.eye_size)

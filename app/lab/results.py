@@ -125,6 +125,7 @@ class BenchResult:
     (its error figures included, as ``ErrorFigures.to_dict``)."""
 
     scene: dict
+    scene_load_s: float  # building or reading the scene (the showroom: its textures)
     path: str
     size: dict
     device: str
@@ -155,6 +156,7 @@ class BenchResult:
         """The documented JSON layout."""
         out: dict = {
             "scene": self.scene,
+            "scene_load_s": round(self.scene_load_s, 4),
             "path": self.path,
             "size": self.size,
             "device": self.device,
