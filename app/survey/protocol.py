@@ -11,13 +11,20 @@ import json
 import math
 import random
 import string
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from app.settings import Settings, SettingsError
 from app.survey.latin import balanced_latin_square, order_for
+
+try:  # Python 3.11+; on 3.10 a protocol can be JSON (or install tomli)
+    import tomllib
+except ImportError:  # pragma: no cover - Python 3.10
+    try:
+        import tomli as tomllib  # type: ignore[no-redef]
+    except ImportError:
+        tomllib = None  # type: ignore[assignment]
 
 QUESTIONNAIRES = ("ssq", "quality")
 ON_STOP = ("end", "continue")
@@ -141,16 +148,20 @@ def load_protocol(path: str | Path) -> Protocol:
         raise ProtocolError(f"cannot read protocol {p}: {exc.strerror or exc}") from exc
     try:
         text = raw.decode("utf-8")
-        if p.suffix.lower() == ".json" or text.lstrip().startswith("{"):
-            doc = json.loads(text)
-        else:
-            doc = tomllib.loads(text)
     except UnicodeDecodeError as exc:
         raise ProtocolError(f"{p}: not a text file ({exc})") from exc
-    except json.JSONDecodeError as exc:
-        raise ProtocolError(f"{p}: not valid JSON: {exc.msg} (line {exc.lineno})") from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ProtocolError(f"{p}: not valid TOML: {exc}") from exc
+    if p.suffix.lower() == ".json" or text.lstrip().startswith("{"):
+        try:
+            doc = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ProtocolError(f"{p}: not valid JSON: {exc.msg} (line {exc.lineno})") from exc
+    elif tomllib is None:
+        raise ProtocolError(f"{p}: TOML needs Python 3.11 or tomli; write the protocol as JSON")
+    else:
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ProtocolError(f"{p}: not valid TOML: {exc}") from exc
     return protocol_from_dict(doc, str(p), p.parent, default_name=p.stem)
 
 
