@@ -279,3 +279,77 @@ def test_a_study_folder_refuses_a_changed_protocol(tmp_path):
     changed = load_protocol(tiny_protocol(tmp_path, "blind = false\n"))
     with pytest.raises(StoreError, match="different protocol"):
         Study(tmp_path / "data", changed)
+
+
+def simulate(study: Study, pid: str, ssq_post, quality_post, frame_ms=16.0):
+    """One participant through the store: baseline all 0, then per condition the given
+    answers (functions of the condition name and item number)."""
+    s = study.session(pid)
+    answer_all(s)
+    while (step := s.next_step()).kind != "end":
+        if step.kind == "exposure":
+            s.start_exposure(step, {})
+            s.end_exposure(step, 1.0, False, [frame_ms] * 5)
+        elif step.kind == "questionnaire":
+            fn = ssq_post if step.questionnaire == "ssq" else quality_post
+            answer_all(s, lambda q, n, c=step.condition, fn=fn: fn(c, n))
+        else:
+            s.start_rest(step)
+            s.end_rest(step)
+    s.end_session()
+    return s
+
+
+def test_analysis_reports_changes_paired_tests_and_plots(tmp_path, capsys):
+    from scipy import stats
+
+    study = Study(tmp_path / "data", load_protocol(tiny_protocol(tmp_path)))
+    totals = {"none": [], "cps": []}
+    for i in range(4):
+        ssq = {"none": [1 if n <= 8 + i else 0 for n in range(16)], "cps": [i % 2] + [0] * 15}
+        for c in totals:
+            totals[c].append(score_ssq(ssq[c]).total)
+        simulate(
+            study,
+            f"P0{i + 1}",
+            lambda c, n, i=i, ssq=ssq: ssq[c][n],
+            lambda c, n, i=i: 2 + (c == "cps") + (n == 0 and i % 2),
+            frame_ms=12.0 + i,
+        )
+    assert main(["survey", "analyse", str(tmp_path / "data")]) == 0
+    assert "4 participants (4 complete)" in capsys.readouterr().out
+    report = (tmp_path / "data/report.md").read_text()
+    none_mean = sum(totals["none"]) / 4
+    assert f"{none_mean:.2f}" in report  # mean SSQ Total change of "none" (baseline is 0)
+    p = stats.ttest_rel(totals["none"], totals["cps"]).pvalue
+    row = next(x for x in report.splitlines() if x.startswith("| SSQ Total change | none − cps"))
+    assert f"{p:.3f}" in row
+    assert "Wilcoxon" in report and "Order effects" in report and "Friedman" not in report
+    assert "frame time" in report
+    for name in ("ssq.png", "quality.png", "answers.csv", "scores.csv"):
+        assert (tmp_path / "data" / name).stat().st_size > 0
+    assert (tmp_path / "data/ssq.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_analysis_of_three_conditions_runs_a_friedman_test(tmp_path):
+    from app.survey.analysis import analyse
+
+    text = 'name = "three"\nexposure_s = 1\nrest_s = 0\n' + "".join(
+        f'[[conditions]]\nname = "{m}"\nsettings = {{ "cps.mode" = "{m}" }}\n'
+        for m in ("none", "black-mask", "cps")
+    )
+    study = Study(tmp_path / "data", load_protocol(write(tmp_path, text)))
+    level = {"none": 2, "black-mask": 1, "cps": 0}
+    for i in range(6):
+        simulate(
+            study,
+            f"P{i}",
+            lambda c, n, i=i: min(3, level[c] + (n < i)),
+            lambda c, n: 3,
+        )
+    analyse(tmp_path / "data")
+    report = (tmp_path / "data/report.md").read_text()
+    assert "Friedman test over all conditions" in report
+    assert "Friedman over runs" in report
+    row = next(x for x in report.splitlines() if x.startswith("| SSQ Total change | 6 |"))
+    assert float(row.split("|")[4].strip().replace("<", "")) < 0.05
