@@ -123,7 +123,7 @@ class QuestionnaireDialog(_NoEscapeDialog):
         nav = QHBoxLayout()
         self.back = QPushButton("← Back")
         self.back.setFocusPolicy(Qt.FocusPolicy.NoFocus)
-        self.back.clicked.connect(self._back)
+        self.back.clicked.connect(lambda _=False: self._back())
         self.hint = QLabel(f"Press {q.lo}-{q.hi} or click. ← / Backspace: previous item.")
         nav.addWidget(self.back)
         nav.addStretch(1)
@@ -176,8 +176,9 @@ class QuestionnaireDialog(_NoEscapeDialog):
 
     def keyPressEvent(self, event: QKeyEvent) -> None:
         key = event.key()
-        if Qt.Key.Key_0 <= key <= Qt.Key.Key_9:
-            value = key - Qt.Key.Key_0
+        zero = Qt.Key.Key_0.value
+        if zero <= int(key) <= zero + 9:
+            value = int(key) - zero
             if self.q.lo <= value <= self.q.hi:
                 self._answer(value)
             event.accept()
@@ -216,7 +217,7 @@ class MessageDialog(_NoEscapeDialog):
         layout.addWidget(self.label)
         self.ok = QPushButton(button)
         self.ok.setDefault(True)
-        self.ok.clicked.connect(self._ok)
+        self.ok.clicked.connect(lambda _=False: self._ok())
         layout.addWidget(self.ok)
 
     @guarded

@@ -345,18 +345,18 @@ class SetupDialog(QDialog):
         layout.addWidget(self.info)
         row = QHBoxLayout()
         self.check_button = QPushButton("Check")
-        self.check_button.clicked.connect(self._check)
+        self.check_button.clicked.connect(lambda _=False: self._check())
         self.analyse_button = QPushButton("Analyse study")
-        self.analyse_button.clicked.connect(self._analyse)
+        self.analyse_button.clicked.connect(lambda _=False: self._analyse())
         self.start_button = QPushButton("Start session")
         self.start_button.setDefault(True)
-        self.start_button.clicked.connect(self._start)
+        self.start_button.clicked.connect(lambda _=False: self._start())
         cancel = QPushButton("Close")
         cancel.clicked.connect(self.reject)
         for b in (self.check_button, self.analyse_button, cancel, self.start_button):
             row.addWidget(b)
         layout.addLayout(row)
-        self.protocol_edit.editingFinished.connect(self._check)
+        self.protocol_edit.editingFinished.connect(lambda: self._check())
         if protocol:
             self._check()
 
@@ -366,11 +366,11 @@ class SetupDialog(QDialog):
         h.setContentsMargins(0, 0, 0, 0)
         h.addWidget(edit, 1)
         b = QPushButton("Browse…")
-        b.clicked.connect(browse)
+        b.clicked.connect(lambda _=False, f=browse: f())
         h.addWidget(b)
         for text, slot in extra:
             e = QPushButton(text)
-            e.clicked.connect(slot)
+            e.clicked.connect(lambda _=False, f=slot: f())
             h.addWidget(e)
         return box
 
