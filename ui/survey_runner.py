@@ -70,6 +70,7 @@ class SurveyRunner(QObject):
         self._t0 = 0.0
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
+        self._timer.setTimerType(Qt.TimerType.PreciseTimer)  # exposure length to the ms
         self._timer.timeout.connect(self._exposure_timeout)
         self._saved_settings = window.settings.copy()
         self._saved_normal = window.normal_mode
@@ -79,6 +80,7 @@ class SurveyRunner(QObject):
     # -- flow ----------------------------------------------------------------------------------
     def start(self) -> None:
         self.window.set_normal_mode(True)  # no panels: they would show the condition's settings
+        QApplication.instance().installEventFilter(self)  # Tab stays off for the session
         self._advance()
 
     def _advance(self) -> None:
@@ -191,7 +193,6 @@ class SurveyRunner(QObject):
         self.exposing = step
         self._frames = []
         w.view.frameSwapped.connect(self._frame)
-        QApplication.instance().installEventFilter(self)
         w.view.setFocus()
         w.view.playing = True
         self._t0 = time.perf_counter()
@@ -202,12 +203,13 @@ class SurveyRunner(QObject):
 
     def eventFilter(self, obj: QObject, event: QEvent) -> bool:
         try:
-            if self.exposing is not None and event.type() == QEvent.Type.KeyPress:
-                if event.key() == STOP_KEY:
+            if event.type() == QEvent.Type.KeyPress and self.finished is None:
+                if event.key() == STOP_KEY and self.exposing is not None:
                     self._end_exposure(stopped=True)
                     return True
-                if event.key() == Qt.Key.Key_Tab:
-                    return True  # no evaluation mode in the middle of a run
+                if event.key() == Qt.Key.Key_Tab and isinstance(obj, QWidget):
+                    # no evaluation mode (panels show the condition) during a session
+                    return obj.window() is self.window
         except Exception:  # noqa: BLE001 - never out of an event filter
             log.exception("study: stopping the exposure failed")
             return True
@@ -223,7 +225,6 @@ class SurveyRunner(QObject):
         if step is None:
             return
         self._timer.stop()
-        QApplication.instance().removeEventFilter(self)
         w = self.window
         w.view.playing = False
         try:
@@ -265,6 +266,7 @@ class SurveyRunner(QObject):
         )
 
     def _restore(self) -> None:
+        QApplication.instance().removeEventFilter(self)
         w = self.window
         for key in self._saved_settings.keys():
             w.settings.set(key, self._saved_settings.get(key))
@@ -277,7 +279,6 @@ class SurveyRunner(QObject):
         if self.exposing is not None:
             self.exposing = None
             self._timer.stop()
-            QApplication.instance().removeEventFilter(self)
             self.window.view.playing = False
         self._close_dialog()
         self._restore()
