@@ -141,6 +141,10 @@ class MainWindow(QMainWindow):
         action(self.viewpoint_menu, "Save viewpoint…", self.save_viewpoint, "Ctrl+B")
         self.viewpoint_menu.addSeparator()
         self._refresh_viewpoints()
+        from ui.survey_runner import open_session_dialog  # survey hook (issue 16)
+
+        study = bar.addMenu("&Study")  # survey hook (issue 16)
+        action(study, "Run a session…", lambda _=False: open_session_dialog(self))  # survey hook
         h = bar.addMenu("&Help")
         action(h, "Controls", self.show_controls, "F1")
 

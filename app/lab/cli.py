@@ -113,6 +113,9 @@ def build_parser() -> argparse.ArgumentParser:
     _common(d)
     d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
     d.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
+    from app.survey.cli import add_parser as add_survey_parser  # survey hook (issue 16)
+
+    add_survey_parser(sub)  # survey hook (issue 16)
     return parser
 
 
@@ -180,6 +183,10 @@ def _run(
 ) -> int:
     from app.lab import bench
 
+    if args.command == "survey":  # survey hook (issue 16)
+        from app.survey.cli import run as run_survey  # survey hook (issue 16)
+
+        return run_survey(args)  # survey hook (issue 16)
     if args.command == "experiments":
         from app.lab.experiments import run_all
 
