@@ -42,6 +42,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check --no-cache app ui render assets tests
 	$(VENV)/bin/ruff format --check --no-cache app ui render assets tests
 	$(VENV)/bin/lint-imports
+	$(VENV)/bin/mypy
 
 test: sysdeps $(STAMP) lint
 	xvfb-run -a -s "-screen 0 1920x1080x24" $(PY) -m pytest -q -p no:cacheprovider

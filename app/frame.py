@@ -19,3 +19,14 @@ class FrameInput:
     # points in world space (drawn with the detail visualisation). None: no caps (all 0).
     cps_caps: list[tuple[float, float, float]] | None = None
     edge_hits: list[np.ndarray] | None = None
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'1280x720' -> (1280, 720): the whole side-by-side view."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError as exc:
+        raise ValueError(f"size must look like 1280x720, got '{text}'") from exc
+    if not (2 <= w <= 16384 and 1 <= h <= 16384):
+        raise ValueError(f"size {w}x{h} is outside 2x1 .. 16384x16384")
+    return w, h

@@ -174,7 +174,8 @@ class HashGrid:
         # The floor is monotonic, so the maximum photon gives the highest occupied cell exactly.
         with np.errstate(over="ignore", invalid="ignore"):
             top = np.floor((pmax - origin) / cell)
-        dims_f = tuple(float(t) + 1.0 + reach for t in top)
+        tx, ty, tz = (float(t) + 1.0 + reach for t in top)
+        dims_f = (tx, ty, tz)
         cells_f = math.prod(dims_f)
         if not all(math.isfinite(d) and d < _COORD_LIMIT for d in dims_f) or cells_f > max_cells:
             raise GridTooLarge(r, pmax - pmin, dims_f, cells_f, max_cells)
@@ -234,7 +235,7 @@ class HashGrid:
         return (np.stack(begin, axis=1).astype(np.int64), np.stack(end, axis=1).astype(np.int64))
 
     def _inside(self, coords: np.ndarray) -> np.ndarray:
-        return ((coords >= 0) & (coords < np.array(self.dims, np.int64))).all(axis=1)
+        return np.all((coords >= 0) & (coords < np.array(self.dims, np.int64)), axis=1)
 
     def candidates(self, point: np.ndarray) -> np.ndarray:
         """Sorted slots (ascending, int64) a query at ``point`` visits; empty outside the grid."""

@@ -29,7 +29,7 @@ def wanted(settings: PhotonSettings, scene: Scene | None) -> bool:
     return settings.enabled == "on" or scene.indirect
 
 
-def map_key(settings: PhotonSettings, scene: Scene) -> tuple:
+def map_key(settings: PhotonSettings, scene: Scene | None) -> tuple:
     """Everything the traced photons depend on (the scene by identity: scenes are not edited in
     place; a reload is a new object; the cache holds the scene, so its id is not reused)."""
     return (id(scene), settings.photons, settings.seed, settings.max_bounces)

@@ -57,7 +57,7 @@ class Walker:
 
     def _blocked(self, move: np.ndarray) -> bool:
         length = float(np.linalg.norm(move))
-        if length < 1e-9:
+        if length < 1e-9 or self.caster is None:  # step() clips only with a caster
             return False
         d = move / length
         s = self.settings
@@ -84,6 +84,8 @@ class Walker:
 
     def _follow_floor(self) -> None:
         """Follow steps of up to STEP_M up or down; anything else below is not a floor."""
+        if self.caster is None:  # step() follows the floor only with a caster
+            return
         s = self.settings
         probe = self.position - np.array([0.0, s.eye_height_m - STEP_M, 0.0])
         dist, _ = self.caster.cast(probe, [0.0, -1.0, 0.0], 2 * STEP_M)

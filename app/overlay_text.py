@@ -26,8 +26,9 @@ def text_image(lines: list[str], padding: int = 6) -> np.ndarray:
     probe = ImageDraw.Draw(Image.new("RGBA", (1, 1)))
     boxes = [probe.textbbox((0, 0), line or " ", font=font) for line in lines] or [(0, 0, 1, 1)]
     line_h = max(b[3] - b[1] for b in boxes) + 3
-    width = max(b[2] for b in boxes) + 2 * padding
-    height = line_h * max(1, len(lines)) + 2 * padding
+    # Pillow types the boxes as floats; its fonts measure whole pixels.
+    width = int(max(b[2] for b in boxes)) + 2 * padding
+    height = int(line_h) * max(1, len(lines)) + 2 * padding
     img = Image.new("RGBA", (width, height), (0, 0, 0, 150))
     draw = ImageDraw.Draw(img)
     for i, line in enumerate(lines):

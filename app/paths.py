@@ -109,21 +109,20 @@ class CameraPath:
         keys = []
         for i, k in enumerate(doc.get("keys") or []):
             try:
-                pos = tuple(float(v) for v in k["position"])
-                gaze = tuple(float(v) for v in k.get("gaze", (0.5, 0.5)))
-                key = PathKey(
-                    float(k["t"]),
-                    pos,
-                    float(k.get("yaw_deg", 0.0)),  # type: ignore
-                    float(k.get("pitch_deg", 0.0)),
-                    gaze,  # type: ignore[arg-type]
-                    bool(k.get("gaze_fixed", False)),
-                )
+                pos = [float(v) for v in k["position"]]
+                gaze = [float(v) for v in k.get("gaze", (0.5, 0.5))]
+                t = float(k["t"])
+                yaw_deg = float(k.get("yaw_deg", 0.0))
+                pitch_deg = float(k.get("pitch_deg", 0.0))
+                gaze_fixed = bool(k.get("gaze_fixed", False))
             except (KeyError, TypeError, ValueError) as exc:
                 raise PathError(f"{origin}: key {i} is malformed ({exc})") from exc
-            values = [key.t, *key.position, key.yaw_deg, key.pitch_deg, *key.gaze]
-            if len(key.position) != 3 or len(key.gaze) != 2 or not np.isfinite(values).all():
+            values = [t, *pos, yaw_deg, pitch_deg, *gaze]
+            if len(pos) != 3 or len(gaze) != 2 or not np.isfinite(values).all():
                 raise PathError(f"{origin}: key {i} has a missing or non-finite value")
+            key = PathKey(
+                t, (pos[0], pos[1], pos[2]), yaw_deg, pitch_deg, (gaze[0], gaze[1]), gaze_fixed
+            )
             keys.append(key)
         if not keys:
             raise PathError(f"{origin}: the path has no keys")
@@ -140,7 +139,7 @@ class CameraPath:
 
 def builtin_path(name: str) -> CameraPath:
     """A path shipped in assets/paths (e.g. 'showroom_walkthrough')."""
-    ref = resources.files("assets").joinpath("paths", f"{name}.json")
+    ref = resources.files("assets").joinpath("paths").joinpath(f"{name}.json")
     try:
         doc = json.loads(ref.read_text(encoding="utf-8"))
     except (OSError, FileNotFoundError, json.JSONDecodeError) as exc:
@@ -152,5 +151,6 @@ def still_path(
     position, yaw_deg: float, pitch_deg: float, seconds: float = 2.0, scene: str = ""
 ) -> CameraPath:
     """A path that stands still at one viewpoint, gaze at the centre (for loaded files)."""
-    key = dict(position=tuple(float(v) for v in position), yaw_deg=yaw_deg, pitch_deg=pitch_deg)
-    return CameraPath([PathKey(0.0, **key), PathKey(seconds, **key)], scene)
+    x, y, z = (float(v) for v in position)
+    keys = [PathKey(t, (x, y, z), yaw_deg, pitch_deg) for t in (0.0, seconds)]
+    return CameraPath(keys, scene)

@@ -9,7 +9,9 @@ lab: render's quality probe (for the window) uses it, and render may not import 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
+from typing import cast
 
 import numpy as np
 
@@ -51,13 +53,14 @@ def fovea_mask(cps: CpsSettings, frame: FrameInput, eye: int) -> np.ndarray:
     region around the gaze by angle alone (``cps.fovea_deg`` and the falloff, no edge caps),
     so every run has a fovea/periphery split."""
     view = frame.eyes[eye]
+    caps: tuple[float, float, float]
     if cps.mode == "cps" and frame.cps_caps:
         caps = frame.cps_caps[eye]
     else:
         caps = (cps.max_level,) * 3
-    levels = detail_map(
-        view, view.width, view.height, frame.gaze, dict(zip(("left", "right", "bottom"), caps)), cps
-    )
+    # FrameInput types the caps as floats; they are SideCaps levels (ints), as detail_map takes.
+    sides = cast(Mapping[str, int], dict(zip(("left", "right", "bottom"), caps)))
+    levels = detail_map(view, view.width, view.height, frame.gaze, sides, cps)
     return levels == 0
 
 
@@ -128,7 +131,9 @@ def measure(
     masks.update(regions or {})
     flip_error = metrics.flip_map(reference, test, ppd)
     figures = {
-        name: ErrorFigures(**r) if r["pixels"] else None
+        name: ErrorFigures(r["psnr_db"], r["ssim"], r["flip"], int(r["pixels"]))
+        if r["pixels"]
+        else None
         for name, r in metrics.compare_regions(reference, test, ppd, masks, flip_error).items()
     }
     diff = np.abs(reference.astype(int) - test.astype(int))

@@ -238,14 +238,15 @@ def _sanitize_material(mat: Material, n_textures: int, notes: list[str]) -> Mate
     if mat.texture is not None and tex is None:
         notes.append(f"material '{mat.name}': texture {mat.texture} missing, colour only")
     base = clean(mat.base_color, 1.0)
+    emissive = clean(mat.emissive, 0.0)
     return Material(
         mat.name,
         (min(base[0], 1.0), min(base[1], 1.0), min(base[2], 1.0), min(base[3], 1.0)),
         tex,
         float(np.clip(_finite(mat.roughness, 0.6), 0.02, 1.0)),
         float(np.clip(_finite(mat.metallic, 0.0), 0.0, 1.0)),
-        clean(mat.emissive, 0.0),
-    )  # type: ignore[arg-type]
+        (emissive[0], emissive[1], emissive[2]),
+    )
 
 
 def _sanitize_light(light: PointLight) -> PointLight | None:

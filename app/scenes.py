@@ -101,7 +101,8 @@ def look_around(scene: Scene, seconds: float = 6.0) -> CameraPath:
     """Stand at the spawn, turn 30 degrees each way, the gaze sweeping, then hold a fixed gaze."""
     sp = scene.spawn
     yaw, pitch = sp.yaw_deg, sp.pitch_deg
-    pos = tuple(float(v) for v in sp.position)
+    x, y, z = sp.position
+    pos = (float(x), float(y), float(z))
     keys = [
         PathKey(0.0, pos, yaw, pitch, (0.5, 0.5)),
         PathKey(seconds * 0.25, pos, yaw + 30.0, pitch, (0.3, 0.45)),
@@ -109,4 +110,4 @@ def look_around(scene: Scene, seconds: float = 6.0) -> CameraPath:
         PathKey(seconds * 0.7, pos, yaw - 30.0, pitch, (0.7, 0.55), True),
         PathKey(seconds, pos, yaw, pitch, (0.5, 0.5), True),
     ]
-    return CameraPath(keys, scene.name)  # type: ignore[arg-type]
+    return CameraPath(keys, scene.name)

@@ -38,7 +38,7 @@ def _opt(
     ``choices`` a string (both are enforced by :meth:`Settings.set`); ``label`` names the
     control in a panel (default: the key's last part) and ``choice_labels`` a choice's entry.
     """
-    meta = {"help": help, "lo": lo, "hi": hi, "choices": choices}
+    meta: dict[str, object] = {"help": help, "lo": lo, "hi": hi, "choices": choices}
     if label is not None:
         meta["label"] = label
     if choice_labels is not None:

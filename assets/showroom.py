@@ -42,6 +42,7 @@ FOUR_LIGHT_RANGE_M = 6.0
 GRID_LIGHT_RANGE_M = 2.5
 
 Vec = Sequence[float] | np.ndarray  # a 3-vector (or a uv pair) as a tuple or an array
+_QUAD_TRIS = np.array([[0, 1, 2], [0, 2, 3]], np.int64)  # a quad's corners as two triangles
 
 
 # -- small linear algebra -----------------------------------------------------------------------
@@ -143,7 +144,7 @@ class MeshBuilder:
                 np.linalg.norm(u) / uv_tile,
                 np.linalg.norm(v) / uv_tile,
             ]
-        self.add(pos, np.repeat(n[None], 4, axis=0), uv, [[0, 1, 2], [0, 2, 3]], rot, pivot)
+        self.add(pos, np.repeat(n[None], 4, axis=0), uv, _QUAD_TRIS, rot, pivot)
 
     def box(
         self,
@@ -261,7 +262,7 @@ class MeshBuilder:
                 np.array([[along[i], y0], [along[i + 1], y0], [along[i + 1], y1], [along[i], y1]])
                 / uv_tile
             )
-            self.add(pos, np.repeat(out[i : i + 1], 4, 0), uv, [[0, 1, 2], [0, 2, 3]], rot, pivot)
+            self.add(pos, np.repeat(out[i : i + 1], 4, 0), uv, _QUAD_TRIS, rot, pivot)
 
     def mesh(self, name: str, material: int) -> Mesh:
         return Mesh(

@@ -38,7 +38,8 @@ def check(ctx: moderngl.Context) -> moderngl.Context:
 def create_headless() -> moderngl.Context:
     """A standalone EGL context (software or GPU), not current on any thread afterwards."""
     try:
-        ctx = moderngl.create_context(standalone=True, backend="egl")
+        # The stub types each **settings value as a dict; glcontext takes backend="egl".
+        ctx = moderngl.create_context(standalone=True, backend="egl")  # type: ignore[arg-type]
     except Exception as exc:  # noqa: BLE001 - glcontext raises plain Exceptions
         raise GLUnavailableError(
             f"cannot create a headless OpenGL context through EGL ({exc}). Install EGL and "

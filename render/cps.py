@@ -30,6 +30,7 @@ from render.pass_graph import (
     bind_image,
     bind_texture,
     set_uniforms,
+    uniform,
 )
 from render.passes import (
     BACKGROUND,
@@ -175,7 +176,7 @@ class CpsEyeTargets:
         self.prev_eye = np.zeros(3)
 
     def release(self) -> None:
-        for obj in (
+        objects: list[moderngl.Framebuffer | moderngl.Texture] = [
             self.levels_fbo,
             self.atlas_fbo,
             self.filtered_fbo,
@@ -187,7 +188,8 @@ class CpsEyeTargets:
             self.filtered,
             *self.history,
             self.lit,
-        ):
+        ]
+        for obj in objects:
             obj.release()
 
 
@@ -252,7 +254,7 @@ class CpsLevelPass(CpsPass):
         for index, (eye, tgt) in enumerate(zip(frame.eyes, res.cps)):
             detail_uniforms(prog, eye, frame.gaze, cf.caps[index], cf.settings)
             weak = cf.settings.temporal and (cf.frame_index + index) % 2 == 1
-            prog["u_level_offset"].value = 1 if weak else 0
+            uniform(prog, "u_level_offset").value = 1 if weak else 0
             tgt.levels_fbo.use()
             self.fullscreen(prog)
         self.state.level_maps_valid = True
@@ -281,6 +283,7 @@ class CpsLightingPass(CpsPass):
         frame.scene.light_buffer.bind_to_uniform_block(0)
         compute = self.stage == "compute"
         defines = lighting_defines(res)
+        prog: moderngl.Program | moderngl.ComputeShader
         if compute:
             prog = self.shaders.compute(
                 "cps_lighting.comp.glsl", {"MULTI_LEVEL": self.dispatch == "multi", **defines}
@@ -288,18 +291,18 @@ class CpsLightingPass(CpsPass):
         else:
             prog = self.shaders.program("fullscreen.vert.glsl", "cps_lighting.frag.glsl", defines)
         scene_uniforms(prog, frame)
-        prog["u_background"].value = BACKGROUND
+        uniform(prog, "u_background").value = BACKGROUND
         max_level = int(min(max(cf.settings.max_level, 0), MAX_LEVEL))
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         for index, (eye, tgt, cps) in enumerate(zip(frame.eyes, res.targets, res.cps)):
             w, h = tgt.size
             deferred_inputs(prog, res, eye, index)
             bind_texture(prog, "levels", cps.levels)
-            if compute:
+            if isinstance(prog, moderngl.ComputeShader):  # compute
                 bind_image(cps.blocks, "out")
                 if self.dispatch == "multi":
                     for s in range(max_level + 1):
-                        prog["u_level"].value = s
+                        uniform(prog, "u_level").value = s
                         bw, bh = -(-w // (1 << s)), -(-h // (1 << s))
                         prog.run(math.ceil(bw / 8), math.ceil(bh / 8))
                 else:
@@ -313,8 +316,8 @@ class CpsLightingPass(CpsPass):
                     cps.atlas_fbo.scissor = (
                         fovea_rect(eye, frame.gaze, cf.caps[index], cf.settings) if s == 0 else None
                     )
-                    prog["u_level"].value = s
-                    prog["u_atlas_offset"].value = (ox, oy)
+                    uniform(prog, "u_level").value = s
+                    uniform(prog, "u_atlas_offset").value = (ox, oy)
                     self.fullscreen(prog)
                 cps.atlas_fbo.scissor = None
         if compute:
@@ -358,7 +361,9 @@ class CpsFilterPass(CpsPass):
             bind_texture(prog, "levels", cps.levels, optional=True)  # raw blocks need none
             if self.from_atlas:
                 bind_texture(prog, "atlas", cps.atlas)
-                prog["u_atlas_offsets"].write(np.array(cps.atlas_offsets, np.int32).tobytes())
+                uniform(prog, "u_atlas_offsets").write(
+                    np.array(cps.atlas_offsets, np.int32).tobytes()
+                )
             else:
                 bind_texture(prog, "blocks", cps.blocks)
             fbo = cps.filtered_fbo if cf.settings.temporal else tgt.forward

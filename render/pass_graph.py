@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import moderngl
 import numpy as np
@@ -135,6 +135,13 @@ class Resources:
         return getattr(getattr(self, table)[index], attr)
 
 
+def uniform(prog: moderngl.Program | moderngl.ComputeShader, name: str) -> moderngl.Uniform:
+    """The uniform ``name`` of ``prog`` (a KeyError when the program has none). moderngl types
+    ``prog[name]`` as any member (uniform, block, attribute, varying); the names passed here
+    are plain uniforms, so this only narrows the type (no check at run time)."""
+    return cast(moderngl.Uniform, prog[name])
+
+
 def bind_texture(
     prog: moderngl.Program | moderngl.ComputeShader,
     name: str,
@@ -143,14 +150,14 @@ def bind_texture(
 ) -> bool:
     """Bind ``tex`` to TEXTURE_UNITS[name] and point sampler ``u_<name>`` at it. ``optional``:
     the variant may not have the sampler (then nothing is bound and False is returned)."""
-    uniform = "u_" + name
-    if uniform not in prog:
+    sampler = "u_" + name
+    if sampler not in prog:
         if optional:
             return False
-        raise UniformError(f"shader has no sampler {uniform}")
+        raise UniformError(f"shader has no sampler {sampler}")
     unit = TEXTURE_UNITS[name]
     tex.use(unit)
-    prog[uniform].value = unit
+    uniform(prog, sampler).value = unit
     return True
 
 
@@ -172,12 +179,13 @@ def set_uniforms(
                 if required:
                     raise UniformError(f"shader has no uniform {name}")
                 continue
+            member = uniform(prog, name)
             if isinstance(value, np.ndarray) and value.shape == (4, 4):
-                prog[name].write(np.ascontiguousarray(value.T, dtype=np.float32).tobytes())
+                member.write(np.ascontiguousarray(value.T, dtype=np.float32).tobytes())
             elif isinstance(value, bytes):
-                prog[name].write(value)
+                member.write(value)
             else:
-                prog[name].value = value
+                member.value = value
 
 
 class RenderPass:

@@ -28,6 +28,7 @@ from render.pass_graph import (
     bind_texture,
     release_query,
     set_uniforms,
+    uniform,
 )
 from render.shaders import ShaderLibrary
 
@@ -65,7 +66,7 @@ class EyeTargets:
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
     def release(self) -> None:
-        for obj in (
+        objects: list[moderngl.Framebuffer | moderngl.Texture] = [
             self.gbuffer,
             self.forward,
             self.albedo,
@@ -76,7 +77,8 @@ class EyeTargets:
             self.tile_lists,
             *self.bounds_fbos,
             *self.bounds,
-        ):
+        ]
+        for obj in objects:
             obj.release()
 
 
@@ -88,7 +90,7 @@ def deferred(settings) -> bool:
     return settings.render.path == "deferred"
 
 
-def scene_uniforms(prog: moderngl.Program, frame: FrameContext) -> None:
+def scene_uniforms(prog: moderngl.Program | moderngl.ComputeShader, frame: FrameContext) -> None:
     """The lights' count and scale and the ambient term. Optional: the geometry passes share
     this with variants (G-buffer, emissive) that shade nothing, so lack them."""
     set_uniforms(
@@ -127,7 +129,7 @@ def _draw_meshes(
             },
         )
         if "u_eye" in prog:  # the forward path: it lights the fragments itself
-            prog["u_eye"].value = tuple(eye.position)
+            uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
         level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
@@ -184,17 +186,18 @@ class LightingPass(RenderPass):
     def execute(self, frame: FrameContext, res: Resources) -> None:
         frame.scene.light_buffer.bind_to_uniform_block(0)
         defines = lighting_defines(res)
+        prog: moderngl.Program | moderngl.ComputeShader
         if self.stage == "compute":
             prog = self.shaders.compute("lighting.comp.glsl", defines)
         else:
             prog = self.shaders.program("fullscreen.vert.glsl", "lighting.frag.glsl", defines)
         scene_uniforms(prog, frame)
-        prog["u_background"].value = BACKGROUND
+        uniform(prog, "u_background").value = BACKGROUND
         self.samples = 0
         for index, (eye, tgt) in enumerate(zip(frame.eyes, res.targets)):
             w, h = tgt.size
             deferred_inputs(prog, res, eye, index)
-            if self.stage == "compute":
+            if isinstance(prog, moderngl.ComputeShader):  # the compute stage
                 bind_image(tgt.color, "out")
                 prog.run(math.ceil(w / 8), math.ceil(h / 8))
             else:
@@ -219,7 +222,9 @@ def lighting_defines(res: Resources) -> dict[str, object]:
     return defines
 
 
-def deferred_inputs(prog: moderngl.Program, res: Resources, eye: EyeView, index: int) -> None:
+def deferred_inputs(
+    prog: moderngl.Program | moderngl.ComputeShader, res: Resources, eye: EyeView, index: int
+) -> None:
     """What deferred.glsl's light_texel reads for one eye: the G-buffer, the tile light lists,
     the indirect light, the eye and the viewport size (units from TEXTURE_UNITS)."""
     tgt = res.targets[index]
@@ -243,7 +248,7 @@ def deferred_inputs(prog: moderngl.Program, res: Resources, eye: EyeView, index:
     )
 
 
-def use_tiles(prog: moderngl.Program, res: Resources, index: int) -> None:
+def use_tiles(prog: moderngl.Program | moderngl.ComputeShader, res: Resources, index: int) -> None:
     """Bind this eye's tiled light lists when light culling ran this frame."""
     if res.written("tile_lists"):
         tgt = res.targets[index]
@@ -276,7 +281,7 @@ class LightCullPass(RenderPass):
         step = self.shaders.program("fullscreen.vert.glsl", "depth_bounds.frag.glsl")
         cull = self.shaders.compute("light_cull.comp.glsl")
         frame.scene.light_buffer.bind_to_uniform_block(0)
-        cull["u_light_count"].value = len(frame.scene.lights)
+        uniform(cull, "u_light_count").value = len(frame.scene.lights)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         for eye, tgt in zip(frame.eyes, res.targets):
             # Tile depth ranges: four 2x2 min/max reductions in the graphics pipeline (on
@@ -289,7 +294,7 @@ class LightCullPass(RenderPass):
                 else:
                     prog = step
                     bind_texture(prog, "bounds", tgt.bounds[level - 1])
-                prog["u_src_size"].value = src_size
+                uniform(prog, "u_src_size").value = src_size
                 fbo.use()
                 self.fullscreen(prog)
                 src_size = tgt.bounds[level].size
@@ -354,9 +359,11 @@ class EmissivePass(RenderPass):
         for eye, tgt in zip(frame.eyes, res.targets):
             tgt.forward.use()
             tgt.forward.depth_mask = False
-            prog["u_view_projection"].write(gl_bytes(eye.view_projection))
+            uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
             for index in emitters:
-                prog["u_emissive"].value = tuple(frame.scene.meshes[index].material.emissive)
+                uniform(prog, "u_emissive").value = tuple(
+                    frame.scene.meshes[index].material.emissive
+                )
                 frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
             tgt.forward.depth_mask = True
         ctx.depth_func = "<"
@@ -420,17 +427,17 @@ class PresentPass(RenderPass):
         frame.out.use()
         x, y = frame.out_origin
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
-        prog["u_exposure"].value = frame.exposure
+        uniform(prog, "u_exposure").value = frame.exposure
         for index, tgt in enumerate(res.targets):
             origin = (x + index * w, y)
             frame.out.viewport = (*origin, w, h)
-            prog["u_origin"].value = origin
+            uniform(prog, "u_origin").value = origin
             bind_texture(prog, "eye_color", tgt.color)
             if levels is not None:
                 bind_texture(prog, "levels", levels[index])
             if show_reuse:
                 bind_texture(prog, "indirect", indirect[index])
-                prog["u_paint_reuse"].value = index
+                uniform(prog, "u_paint_reuse").value = index
             self.fullscreen(prog)
         frame.out.viewport = (x, y, 2 * w, h)
 
@@ -505,7 +512,8 @@ class OverlayPass(RenderPass):
         ctx = self.ctx
         ctx.enable(moderngl.BLEND)
         # Colour blends; destination alpha stays 1, or Qt composites the view as translucent.
-        ctx.blend_func = (
+        # The stub types blend_func as a pair; moderngl also takes (rgb src, dst, alpha src, dst).
+        ctx.blend_func = (  # type: ignore[assignment]
             moderngl.SRC_ALPHA,
             moderngl.ONE_MINUS_SRC_ALPHA,
             moderngl.ZERO,
@@ -516,19 +524,22 @@ class OverlayPass(RenderPass):
             bind_texture(heat, "heat", self._heat_tex)
             set_uniforms(heat, {"u_origin": (x0, y0), "u_view_size": (2 * w, h)})
             self.fullscreen(heat)
-        show_text = self.show_text and self._text_tex is not None
-        tw, th = self._text_tex.size if show_text else (0, 0)
-        if show_text:
-            bind_texture(prog, "text", self._text_tex)
+        text_tex = self._text_tex if self.show_text else None
+        show_text = text_tex is not None
+        if text_tex is not None:
+            tw, th = text_tex.size
+            bind_texture(prog, "text", text_tex)
         else:
-            prog["u_text"].value = TEXTURE_UNITS["text"]  # nothing drawn: any texture will do
-        prog["u_text_size"].value = (tw, th)
-        prog["u_view_size"].value = (2 * w, h)
-        prog["u_origin"].value = (x0, y0)
+            tw, th = 0, 0
+            # Nothing drawn: any texture will do.
+            uniform(prog, "u_text").value = TEXTURE_UNITS["text"]
+        uniform(prog, "u_text_size").value = (tw, th)
+        uniform(prog, "u_view_size").value = (2 * w, h)
+        uniform(prog, "u_origin").value = (x0, y0)
         gu, gv = frame.gaze
-        prog["u_gaze"].value = (gu, gv)
-        prog["u_gaze_fixed"].value = int(frame.gaze_fixed)
-        prog["u_show_text"].value = int(show_text)
+        uniform(prog, "u_gaze").value = (gu, gv)
+        uniform(prog, "u_gaze_fixed").value = int(frame.gaze_fixed)
+        uniform(prog, "u_show_text").value = int(show_text)
         rects = []
         if show_text:
             rects.append((x0, y0 + h - th, tw, th))
@@ -606,7 +617,7 @@ class ObjectIdPass(RenderPass):
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             set_uniforms(prog, {"u_view_projection": eye.view_projection})
             for index in range(len(frame.scene.meshes)):
-                prog["u_id"].value = float(index + 1)
+                uniform(prog, "u_id").value = float(index + 1)
                 frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
             data = np.frombuffer(ids.read(), np.float32).reshape(ids.size[1], ids.size[0])
             self.result.append(np.flipud(data).astype(np.int32) - 1)

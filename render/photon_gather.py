@@ -4,7 +4,7 @@
 cells of r or r/2, or a kd-tree); ``PhotonGather`` runs the estimate at a list of points
 (``photon_points.comp.glsl``, for tests and benchmarks) or over an eye's G-buffer
 (``photon_gather.comp.glsl``). The estimate itself lives in ``photon_gather.glsl`` so the
-lighting shaders can include it; it matches ``app.photon_ref`` (see that module and the shader).
+lighting shaders can include it; it matches ``app.lab.photon_ref`` (see that module and the shader).
 
 Variants (``VARIANTS``), as in the paper's tables:
   radius       hash grid, cell r, 3x3x3 cells as 9 runs of 3 (the paper's method, no heap)

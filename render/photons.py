@@ -41,7 +41,7 @@ class PhotonPass(RenderPass):
     lighting gathers itself ("photon_map"). At block rate (CPS) it reads the level map."""
 
     name = "photons"
-    reads = ("depth", "normal")
+    reads: tuple[str, ...] = ("depth", "normal")
     writes = ("indirect", "photon_map", "show_reuse")
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
@@ -70,16 +70,16 @@ class PhotonPass(RenderPass):
             self.gmap.release()
         self.gmap, self._gmap_key = None, None
 
-    def _ensure_map(self) -> GpuPhotonMap | None:
+    def _ensure_map(self, photons: PhotonMap) -> GpuPhotonMap | None:
         s = self.settings
         structure = STRUCTURE_OF[s.gather]
-        key = (id(self.photons), s.radius_m, structure)
+        key = (id(photons), s.radius_m, structure)
         if key != self._gmap_key:
             self._drop_map()
             self._gmap_key = key
             self.error = None
             try:
-                self.gmap = GpuPhotonMap(self.ctx, self.photons, s.radius_m, structure)
+                self.gmap = GpuPhotonMap(self.ctx, photons, s.radius_m, structure)
             except ValueError as exc:  # GridTooLarge: a clear message, no indirect light
                 self.error = str(exc)
                 log.warning("no indirect light: %s", exc)
@@ -113,7 +113,7 @@ class PhotonPass(RenderPass):
     def execute(self, frame: FrameContext, res: Resources) -> None:
         if self.photons is None:
             return
-        gmap = self._ensure_map()
+        gmap = self._ensure_map(self.photons)
         if gmap is None:
             return
         s = self.settings

@@ -133,7 +133,7 @@ class Renderer:
     def _warm_up(self) -> None:
         """Compile every shader variant now, so the first frames do not stall."""
         tcr = self.settings.tcr
-        modes = [{}]
+        modes: list[dict[str, object]] = [{}]
         if tcr.enabled:
             mode = "TCR_PAPER" if tcr.mode == "paper" else "TCR_CLAMP"
             modes = [{mode: True, "TCR_TINT": tcr.tint}]
@@ -162,7 +162,9 @@ class Renderer:
         """The frame's inputs as every pass sees them."""
         r = self.settings.render
         s = self.settings.cps
-        caps = frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
+        caps: list[tuple[float, float, float]] = (
+            frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
+        )
         return FrameContext(
             eyes=frame.eyes,
             scene=self.gpu_scene or self._empty,
@@ -296,7 +298,8 @@ class Renderer:
         path; {} when culling is off or the path is forward)."""
         if not self.light_cull.enabled or not self.targets:
             return {}
-        return LightCullPass.evaluations(self.targets, len(self.gpu_scene.lights))
+        scene = self.gpu_scene or self._empty  # the scene the frame drew (as frame_context)
+        return LightCullPass.evaluations(self.targets, len(scene.lights))
 
     def texture_resident_bytes(self) -> int:
         return self.gpu_scene.texture_bytes if self.gpu_scene is not None else 0

@@ -43,7 +43,9 @@ class Source:
 
 def read_file(name: str) -> str:
     try:
-        return resources.files("render").joinpath("shaders", name).read_text(encoding="utf-8")
+        return (
+            resources.files("render").joinpath("shaders").joinpath(name).read_text(encoding="utf-8")
+        )
     except (FileNotFoundError, OSError) as exc:
         raise ShaderError(f"shader file not found: render/shaders/{name}") from exc
 
@@ -79,7 +81,7 @@ def assemble(name: str, defines: dict[str, object] | None = None, reader=None) -
     emit(name, ())
     first = next((i for i, line in enumerate(out) if line.strip()), None)
     m = _VERSION.match(out[first]) if first is not None else None
-    if m is None:
+    if first is None or m is None:
         raise ShaderError(f"{name}:1: the first line must be '#version {MIN_VERSION}' or later")
     if int(m.group(1)) < MIN_VERSION:
         raise ShaderError(

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import main
+from app.lab.cli import main
 from app.survey.latin import balanced_latin_square, order_for
 from app.survey.protocol import TEMPLATE, ProtocolError, load_protocol
 from app.survey.questionnaires import QuestionnaireError, questionnaire, score_ssq

@@ -10,7 +10,7 @@ import pytest
 from PyQt6.QtCore import Qt
 from PyQt6.QtWidgets import QApplication, QMessageBox
 
-from app.cli import main
+from app.lab.cli import main
 from app.settings import Settings
 from app.survey.questionnaires import questionnaire
 from ui.main_window import MainWindow

@@ -7,6 +7,7 @@ commands run without it.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from app.lab import cli
 from app.paths import CameraPath
@@ -19,8 +20,15 @@ def open_window(scene: str, settings: Settings, path: CameraPath | None) -> int:
     return int(run(scene, settings, path))
 
 
+def open_survey(protocol: str, folder: Path, participant: str | None, size: str) -> int:
+    """``vrpreview survey run``: the study's session runner in the window."""
+    from ui.survey_runner import run_standalone  # Qt from here on
+
+    return int(run_standalone(protocol, folder, participant, size))
+
+
 def main(argv: list[str] | None = None) -> int:
-    return cli.main(argv, open_window)
+    return cli.main(argv, open_window, open_survey)
 
 
 if __name__ == "__main__":

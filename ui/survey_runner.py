@@ -502,7 +502,7 @@ def start_session(
 
 def run_standalone(protocol_file, folder, pid: str | None, size: str = "1600x900") -> int:
     """``vrpreview survey run``: the window with the setup dialog filled in."""
-    from app.bench import parse_size
+    from app.frame import parse_size
     from ui.main_window import MainWindow, create_app
 
     app = create_app()

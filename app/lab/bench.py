@@ -36,17 +36,6 @@ log = logging.getLogger(__name__)
 Progress = Callable[[int, int], None]
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    """'1280x720' -> (1280, 720): the whole side-by-side view."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError as exc:
-        raise ValueError(f"size must look like 1280x720, got '{text}'") from exc
-    if not (2 <= w <= 16384 and 1 <= h <= 16384):
-        raise ValueError(f"size {w}x{h} is outside 2x1 .. 16384x16384")
-    return w, h
-
-
 def _open(
     scene_name: str, size: tuple[int, int], settings: Settings, path: CameraPath | None = None
 ):

@@ -15,8 +15,12 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from app.frame import parse_size
 from app.paths import CameraPath
 from app.settings import Settings, SettingsError
+from app.survey.cli import OpenRunner
+from app.survey.cli import add_parser as add_survey_parser
+from app.survey.cli import run as run_survey
 
 EXIT_USAGE = 2
 # Opens the window: (scene, settings, path or None) -> exit status.
@@ -113,9 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     _common(d)
     d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
     d.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
-    from app.survey.cli import add_parser as add_survey_parser  # survey hook (issue 16)
-
-    add_survey_parser(sub)  # survey hook (issue 16)
+    add_survey_parser(sub)
     return parser
 
 
@@ -142,7 +144,11 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def main(argv: list[str] | None = None, open_window: OpenWindow | None = None) -> int:
+def main(
+    argv: list[str] | None = None,
+    open_window: OpenWindow | None = None,
+    open_survey: OpenRunner | None = None,
+) -> int:
     """Run the command in ``argv``; without one, ``open_window`` opens the window (no display
     or no ``open_window``: the headless walkthrough runs instead)."""
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
@@ -161,7 +167,7 @@ def main(argv: list[str] | None = None, open_window: OpenWindow | None = None) -
                 print(f"{key} = {settings.get(key)!r}  # {meta.get('help', '')}")
             return 0
         path = resolve_path(args.path) if args.path else None
-        return _run(args, settings, path, open_window)
+        return _run(args, settings, path, open_window, open_survey)
     except (
         SettingsError,
         SceneLoadError,
@@ -180,13 +186,12 @@ def _run(
     settings: Settings,
     path: CameraPath | None,
     open_window: OpenWindow | None,
+    open_survey: OpenRunner | None = None,
 ) -> int:
     from app.lab import bench
 
-    if args.command == "survey":  # survey hook (issue 16)
-        from app.survey.cli import run as run_survey  # survey hook (issue 16)
-
-        return run_survey(args)  # survey hook (issue 16)
+    if args.command == "survey":
+        return run_survey(args, open_survey)
     if args.command == "experiments":
         from app.lab.experiments import run_all
 
@@ -205,12 +210,12 @@ def _run(
         print(report(args.files, tuple(args.group)))
         return 0
     if args.command == "render":
-        size = bench.parse_size(args.size)
+        size = parse_size(args.size)
         bench.render_frame(args.scene, args.out, size, args.frame, settings, path)
         print(f"wrote {args.out}")
         return 0
     if args.command == "bench":
-        size = bench.parse_size(args.size)
+        size = parse_size(args.size)
         result = bench.bench(
             args.scene,
             size,
@@ -254,7 +259,7 @@ def _run(
                 file=sys.stderr,
             )
         out_dir = Path(getattr(args, "out_dir", "out"))
-        size = bench.parse_size(getattr(args, "size", "1280x720"))
+        size = parse_size(getattr(args, "size", "1280x720"))
         summary = bench.demo(args.scene, out_dir, size, settings, progress=_progress("walkthrough"))
         print(
             f"{summary['frames']} frames, {summary['fps_median']:.1f} fps median; "

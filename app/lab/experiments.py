@@ -145,7 +145,7 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
     ``out_dir``; returns the tables."""
     out = Path(out_dir)
     runs = [r for r in EXPERIMENTS[which]() if not only or only in r.name]
-    files = []
+    files: list[str | Path] = []
     converged = ConvergedPhotons(TraceProgress())  # traced once for all the runs that compare
     for index, run in enumerate(runs, start=1):
         print(f"[{index}/{len(runs)}] {run.name}: {run.command()}", file=sys.stderr, flush=True)

@@ -10,7 +10,8 @@ import shlex
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
-from app.lab.bench import bench, parse_size
+from app.frame import parse_size
+from app.lab.bench import bench
 from app.lab.reference import ConvergedPhotons
 from app.lab.results import BenchResult
 from app.scenes import resolve_path

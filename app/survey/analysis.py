@@ -14,8 +14,10 @@ import itertools
 import math
 import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -160,7 +162,7 @@ def _change(r: Record, c: str, key: str) -> float | None:
     return None
 
 
-def _complete_cases(records: list[Record], conds: list[str], value) -> list[list[float]]:
+def _complete_cases(records: list[Record], conds: Sequence[Any], value) -> list[list[float]]:
     rows = []
     for r in records:
         vals = [value(r, c) for c in conds]
@@ -202,7 +204,7 @@ def analyse(folder: str | os.PathLike[str]) -> AnalysisResult:
         "participants with both values. 95% CI: t-interval of the mean."
     )
     md.append("")
-    orders = {}
+    orders: dict[str, list[str]] = {}
     for r in records:
         orders.setdefault(" → ".join(codes.get(c, "?") for c in r.order), []).append(r.pid)
     md.append("Orders: " + "; ".join(f"{o}: {', '.join(v)}" for o, v in sorted(orders.items())))
@@ -388,12 +390,12 @@ def analyse(folder: str | os.PathLike[str]) -> AnalysisResult:
         for c in conds:
             cells = []
             for pos in range(len(conds)):
-                vals = [
+                at_pos = [
                     v
                     for r in records
                     if r.position.get(c) == pos and (v := _change(r, c, "total")) is not None
                 ]
-                d = describe(vals)
+                d = describe(at_pos)
                 cells.append(f"{f(d.mean)} (n {d.n})")
             rows.append([f"{codes[c]} {c}", *cells])
         md.append(table(["condition", *[f"as run {i + 1}" for i in range(len(conds))]], rows))
@@ -420,9 +422,9 @@ def analyse(folder: str | os.PathLike[str]) -> AnalysisResult:
         )
         for r in records:
             x = r.exposures.get(c)
-            ch = _change(r, c, "total") if has_ssq else None
-            if x is not None and x.frame_ms and ch is not None:
-                points.append((summarize(x.frame_ms)["median"], ch))
+            change = _change(r, c, "total") if has_ssq else None
+            if x is not None and x.frame_ms and change is not None:
+                points.append((summarize(x.frame_ms)["median"], change))
     md.append(
         table(
             [
@@ -477,7 +479,7 @@ def _bar_group(
         if err == "ci":
             lo = [d.mean - d.ci_lo if math.isfinite(d.ci_lo) else 0.0 for d in ds]
             hi = [d.ci_hi - d.mean if math.isfinite(d.ci_hi) else 0.0 for d in ds]
-            yerr = [lo, hi]
+            yerr: list[list[float]] | list[float] = [lo, hi]
         else:
             yerr = [d.sd if math.isfinite(d.sd) else 0.0 for d in ds]
         ax.bar(

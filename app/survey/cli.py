@@ -6,10 +6,10 @@ app/cli.py registers this with two hook lines (:func:`add_parser` and :func:`run
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 EXIT_USAGE = 2
@@ -50,19 +50,24 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-def run(args: argparse.Namespace) -> int:
+# Opens the session runner in the window: (protocol file, study folder, participant, size) ->
+# exit code. The window is ui's; the ``vrpreview`` launcher hands it in, so no model imports ui.
+OpenRunner = Callable[[str, Path, "str | None", str], int]
+
+
+def run(args: argparse.Namespace, open_runner: OpenRunner | None = None) -> int:
     from app.survey.protocol import ProtocolError
     from app.survey.questionnaires import QuestionnaireError
     from app.survey.store import StoreError
 
     try:
-        return _run(args)
+        return _run(args, open_runner)
     except (ProtocolError, QuestionnaireError, StoreError, OSError) as exc:
         print(f"vrpreview survey: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, open_runner: OpenRunner | None) -> int:
     cmd = args.survey_command
     if cmd == "ssq":
         return _ssq(args)
@@ -99,8 +104,14 @@ def _run(args: argparse.Namespace) -> int:
 
         protocol = load_protocol(args.protocol)
         folder = Path(args.dir) if args.dir else default_study_dir(protocol.name)
-        runner = importlib.import_module("ui.survey_runner")  # Qt lives in ui/ only
-        return int(runner.run_standalone(args.protocol, folder, args.participant, args.size))
+        if open_runner is None:
+            print(
+                "vrpreview survey: error: the session runner needs the window; start it with "
+                "the vrpreview command (or Study > Run a session… in the window)",
+                file=sys.stderr,
+            )
+            return EXIT_USAGE
+        return int(open_runner(args.protocol, folder, args.participant, args.size))
     raise AssertionError(cmd)
 
 

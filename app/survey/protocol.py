@@ -7,6 +7,7 @@ that names the file and the field, never a traceback.
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import random
@@ -18,13 +19,14 @@ from typing import Any
 from app.settings import Settings, SettingsError
 from app.survey.latin import balanced_latin_square, order_for
 
-try:  # Python 3.11+; on 3.10 a protocol can be JSON (or install tomli)
-    import tomllib
-except ImportError:  # pragma: no cover - Python 3.10
+# TOML protocols: tomllib on Python 3.11+, tomli on 3.10 if installed; otherwise JSON only.
+tomllib: Any = None
+for _name in ("tomllib", "tomli"):
     try:
-        import tomli as tomllib  # type: ignore[no-redef]
-    except ImportError:
-        tomllib = None  # type: ignore[assignment]
+        tomllib = importlib.import_module(_name)
+        break
+    except ImportError:  # pragma: no cover - Python 3.10 without tomli
+        continue
 
 QUESTIONNAIRES = ("ssq", "quality")
 ON_STOP = ("end", "continue")

@@ -598,8 +598,8 @@ def export_csv(folder: str | os.PathLike[str]) -> list[Path]:
                     x.duration_s if x else "",
                     int(x.stopped) if x else "",
                     len(x.frame_ms) if x else "",
-                    f"{fm['median']:.2f}" if fm and x.frame_ms else "",
-                    f"{fm['p95']:.2f}" if fm and x.frame_ms else "",
+                    f"{fm['median']:.2f}" if fm and x and x.frame_ms else "",
+                    f"{fm['p95']:.2f}" if fm and x and x.frame_ms else "",
                 ]
             )
     scores = atomic_write_text(out / "scores.csv", buf.getvalue())

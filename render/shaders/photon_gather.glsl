@@ -100,7 +100,7 @@ PmQuery pm_query(vec3 P, vec3 N) {
 }
 
 bool pm_valid(vec3 P, vec3 N) {
-    // A NaN / inf position or normal gathers nothing (as in app.photon_ref), and comparisons
+    // A NaN / inf position or normal gathers nothing (as in app.lab.photon_ref), and comparisons
     // with NaN would slip through the range checks below.
     return !(any(isnan(P)) || any(isinf(P)) || any(isnan(N)) || any(isinf(N)));
 }
@@ -141,7 +141,7 @@ void pm_heap_push(float d2, vec3 power) {
 
 // The squared search radius now (the paper's radius shrink): the heap's farthest once it is
 // full, else r^2. A full heap at distance 0 (k photons exactly at P) keeps r^2: the estimate
-// then falls back to all counted photons (app.photon_ref.estimate_knn), so they must all be seen.
+// then falls back to all counted photons (app.lab.photon_ref.estimate_knn), so they must all be seen.
 float pm_limit2() {
     return (pm_heap_n < HEAP_K || !(pm_heap[0].w > 0.0)) ? u_pm_radius2 : pm_heap[0].w;
 }
