@@ -10,6 +10,7 @@ texture) and the frame's inputs.
 from __future__ import annotations
 
 import logging
+from typing import Generic, TypeVar, cast
 
 import moderngl
 import numpy as np
@@ -66,32 +67,33 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
 )
 
 
-class _Pass:
+P = TypeVar("P", bound=RenderPass)
+
+
+class _Pass(Generic[P]):
     """``renderer.<pass name>``: the pass of that name (for the hosts, panels and tests)."""
 
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
 
-    def __get__(self, renderer: Renderer | None, owner: type | None = None):
-        if renderer is None:
-            return self
-        return renderer.pass_named(self.name)
+    def __get__(self, renderer: Renderer, owner: type | None = None) -> P:
+        return cast(P, renderer.pass_named(self.name))
 
 
 class Renderer:
-    gbuffer: GBufferPass = _Pass()  # type: ignore[assignment]
-    light_cull: LightCullPass = _Pass()  # type: ignore[assignment]
-    cps_levels: CpsLevelPass = _Pass()  # type: ignore[assignment]
-    photons: PhotonPass = _Pass()  # type: ignore[assignment]
-    lighting: LightingPass = _Pass()  # type: ignore[assignment]
-    cps_lighting: CpsLightingPass = _Pass()  # type: ignore[assignment]
-    cps_filter: CpsFilterPass = _Pass()  # type: ignore[assignment]
-    cps_temporal: CpsTemporalPass = _Pass()  # type: ignore[assignment]
-    cps_mask: CpsMaskPass = _Pass()  # type: ignore[assignment]
-    emissive: EmissivePass = _Pass()  # type: ignore[assignment]
-    forward: ForwardPass = _Pass()  # type: ignore[assignment]
-    present: PresentPass = _Pass()  # type: ignore[assignment]
-    overlay: OverlayPass = _Pass()  # type: ignore[assignment]
+    gbuffer = _Pass[GBufferPass]()
+    light_cull = _Pass[LightCullPass]()
+    cps_levels = _Pass[CpsLevelPass]()
+    photons = _Pass[PhotonPass]()
+    lighting = _Pass[LightingPass]()
+    cps_lighting = _Pass[CpsLightingPass]()
+    cps_filter = _Pass[CpsFilterPass]()
+    cps_temporal = _Pass[CpsTemporalPass]()
+    cps_mask = _Pass[CpsMaskPass]()
+    emissive = _Pass[EmissivePass]()
+    forward = _Pass[ForwardPass]()
+    present = _Pass[PresentPass]()
+    overlay = _Pass[OverlayPass]()
 
     def __init__(
         self,

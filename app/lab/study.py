@@ -221,6 +221,7 @@ def run_study(
     matrix = matrix or MATRICES[which]()
     out = Path(out_dir)
     results_file = out / "results.json"
+    header = {"study": which, "scene": matrix.scene, "path": matrix.path, "size": size}
     rows: list[dict] = []
     if results_file.exists():
         try:
@@ -236,30 +237,14 @@ def run_study(
             continue
         result = bench_run(replace(run, size=size), converged, runner=bench)
         rows.append(asdict(StudyRow.of(run, result)))
-        atomic_write_json(
-            results_file,
-            {
-                "study": which,
-                "scene": matrix.scene,
-                "path": matrix.path,
-                "size": size,
-                "rows": rows,
-            },
-        )
+        atomic_write_json(results_file, header | {"rows": rows})
     full = next((r for r in rows if r["name"] == FULL), None)
     for r in rows:
         r["speedup"] = full["frame_ms"] / r["frame_ms"] if full and r["frame_ms"] else None
     front = pareto(rows)
     atomic_write_json(
         results_file,
-        {
-            "study": which,
-            "scene": matrix.scene,
-            "path": matrix.path,
-            "size": size,
-            "rows": rows,
-            "pareto": front,
-        },
+        header | {"rows": rows, "pareto": front},
     )
     atomic_write_text(out / "results.csv", to_csv(rows))
     atomic_write_text(out / "report.md", to_markdown(which, matrix, rows, front))
