@@ -17,6 +17,7 @@ drop (the GLSL compiler removes uniforms a variant does not read).
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
@@ -188,7 +189,7 @@ def set_uniforms(
                 member.value = value
 
 
-class RenderPass:
+class RenderPass(ABC):
     """One pass: its contract (``name``, ``reads``, ``optional_reads``, ``writes``), its on/off
     rule (``configure``) and its work (``execute``), timed on the GPU (``last_ms``)."""
 
@@ -219,8 +220,9 @@ class RenderPass:
             self.execute(frame, self.res)
         self.last_ms = self._query.elapsed / 1e6
 
+    @abstractmethod
     def execute(self, frame: FrameContext, res: Resources) -> None:
-        raise NotImplementedError  # each pass defines its work
+        """The pass's work for one frame (each pass defines it)."""
 
     def fullscreen(self, prog: moderngl.Program) -> None:
         """Draw one viewport-covering triangle with ``prog`` (no vertex buffer)."""

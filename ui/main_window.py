@@ -38,11 +38,13 @@ from app.scene import Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
+from ui import guard
 from ui.cps_panel import CpsPanel
 from ui.gl_view import StereoView, default_format
 from ui.panels import EvaluationBar, SettingsPanel
 from ui.photon_panel import PhotonPanel
 from ui.quality_panel import QualityPanel
+from ui.survey_runner import open_session_dialog
 from ui.tcr_panel import TcrPanel
 
 log = logging.getLogger(__name__)
@@ -141,10 +143,8 @@ class MainWindow(QMainWindow):
         action(self.viewpoint_menu, "Save viewpoint…", self.save_viewpoint, "Ctrl+B")
         self.viewpoint_menu.addSeparator()
         self._refresh_viewpoints()
-        from ui.survey_runner import open_session_dialog  # survey hook (issue 16)
-
-        study = bar.addMenu("&Study")  # survey hook (issue 16)
-        action(study, "Run a session…", lambda _=False: open_session_dialog(self))  # survey hook
+        study = bar.addMenu("&Study")
+        action(study, "Run a session…", lambda _=False: open_session_dialog(self))
         h = bar.addMenu("&Help")
         action(h, "Controls", self.show_controls, "F1")
 
@@ -483,6 +483,7 @@ def create_app(argv: list[str] | None = None) -> QApplication:
     QSurfaceFormat.setDefaultFormat(default_format())
     app = QApplication.instance() or QApplication(argv or sys.argv[:1])
     app.setApplicationName("VR Preview")
+    guard.install()
     return app  # type: ignore[return-value]
 
 
