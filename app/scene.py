@@ -86,6 +86,10 @@ class Scene:
     floor_y: float | None = None  # floor height under the spawn, if known
     source: str = ""  # file path, or "built-in"
     indirect: bool = False  # the scene asks for photon-mapped indirect light (photons.enabled)
+    unit_scale: float = 1.0  # metres per file unit that loading applied
+    # What loading subtracted from the file's (scaled) coordinates to bring a model far from the
+    # origin to it: file position = scene position + origin_offset (shown, never rendered with).
+    origin_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     warnings: list[str] = field(default_factory=list)
 
     @property

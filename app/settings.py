@@ -31,14 +31,18 @@ def _opt(
     choices: tuple[str, ...] | None = None,
     label: str | None = None,
     choice_labels: dict[str, str] | None = None,
+    check: Any = None,
 ) -> Any:
     """A setting's default and what the panels, the CLI and validation know about it.
 
     ``help`` is the CLI's comment and the panels' tooltip; ``lo``/``hi`` bound a number and
     ``choices`` a string (both are enforced by :meth:`Settings.set`); ``label`` names the
-    control in a panel (default: the key's last part) and ``choice_labels`` a choice's entry.
+    control in a panel (default: the key's last part) and ``choice_labels`` a choice's entry;
+    ``check`` normalises a value or raises ``ValueError`` with the reason.
     """
     meta: dict[str, object] = {"help": help, "lo": lo, "hi": hi, "choices": choices}
+    if check is not None:
+        meta["check"] = check
     if label is not None:
         meta["label"] = label
     if choice_labels is not None:
@@ -285,6 +289,44 @@ class PhotonSettings:
     )
 
 
+def _unit_scale(value: str) -> str:
+    """``auto`` or a positive factor from the file's units to metres (0.01 = centimetres)."""
+    text = str(value).strip().lower()
+    if text == "auto":
+        return text
+    factor = float(text)
+    if not math.isfinite(factor) or factor <= 0.0:
+        raise ValueError("a unit scale is 'auto' or a positive number such as 0.01")
+    return repr(factor)
+
+
+@dataclass
+class SceneSettings:
+    """How a model file becomes a room: its units and the limits that keep a load safe."""
+
+    unit_scale: str = _opt(
+        "auto",
+        "metres per file unit: auto (trust the file, warn if the room is implausible), "
+        "or a factor such as 0.01 for centimetres or 0.0254 for inches",
+        label="units (m per unit)",
+        check=_unit_scale,
+    )
+    max_texture_px: int = _opt(
+        8192,
+        "textures larger than this on their longest side are downscaled when loading",
+        lo=16,
+        hi=65536,
+        label="largest texture (px)",
+    )
+    max_memory_mb: int = _opt(
+        8192,
+        "a file whose geometry and textures would need more memory than this is refused",
+        lo=64,
+        hi=1 << 20,
+        label="memory limit per load (MB)",
+    )
+
+
 @dataclass
 class Settings:
     stereo: StereoSettings = field(default_factory=StereoSettings)
@@ -294,6 +336,7 @@ class Settings:
     tcr: TcrSettings = field(default_factory=TcrSettings)
     cps: CpsSettings = field(default_factory=CpsSettings)
     photons: PhotonSettings = field(default_factory=PhotonSettings)
+    scene: SceneSettings = field(default_factory=SceneSettings)
 
     # -- dotted-key access -------------------------------------------------------------------
     def _locate(self, key: str) -> tuple[Any, dataclasses.Field[Any]]:
@@ -401,6 +444,8 @@ def _coerce(key: str, f: dataclasses.Field[Any], current: Any, value: Any) -> An
                 raise ValueError("not a finite number")
         else:
             out = str(value)
+        if meta.get("check") is not None:
+            out = meta["check"](out)
     except (TypeError, ValueError) as exc:
         raise SettingsError(f"{key}: cannot use {value!r} ({exc})") from exc
     if meta.get("choices") and out not in meta["choices"]:
