@@ -38,6 +38,7 @@ import numpy as np
 from app.default_lights import default_lights
 from app.errors import SceneLoadError
 from app.gltf import gltf_lights, gltf_wants_indirect, read_gltf_json
+from app.placement import place
 from app.progress import LoadCancelled, Progress
 from app.raycast import RayCaster
 from app.scene import Scene
@@ -113,7 +114,7 @@ def _load(p: Path, options: LoadOptions, progress: Progress) -> Scene:
             "(it is empty, or holds only points or lines)."
         )
     progress.report(0.75, "Checking geometry")
-    scene = raw.sanitized()
+    scene = place(raw, options.unit_scale).sanitized()
     if not scene.meshes:
         raise SceneLoadError(
             f"Cannot show '{p.name}': none of its triangles are valid "

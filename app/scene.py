@@ -45,7 +45,9 @@ class Mesh:
     """One drawable object: an indexed triangle list with one material."""
 
     name: str
-    positions: np.ndarray  # (N, 3) float32, world space, Y up, metres
+    positions: (
+        np.ndarray
+    )  # (N, 3) float32, world space, Y up, metres (readers: float64, file units)
     normals: np.ndarray  # (N, 3) float32, unit length
     uvs: np.ndarray  # (N, 2) float32, may leave [0, 1] (repeat wrapping)
     indices: np.ndarray  # (M, 3) uint32

@@ -115,7 +115,7 @@ class SceneBuilder:
             uvs = np.zeros((len(pos), 2))
         return Mesh(
             name,
-            pos.astype(np.float32),
+            pos,  # float64 until app.placement.place has scaled and re-centred it
             normals.astype(np.float32),
             uvs.astype(np.float32),
             idx.astype(np.uint32),
