@@ -55,7 +55,8 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
     if offset.any():
         warnings.append(
             "the model lies far from the origin: moved by "
-            f"({0.0 - offset[0]:.1f}, {0.0 - offset[1]:.1f}, {0.0 - offset[2]:.1f}) m to keep its precision"
+            f"({0.0 - offset[0]:.1f}, {0.0 - offset[1]:.1f}, {0.0 - offset[2]:.1f}) m "
+            "to keep its precision"
         )
     return replace(
         scene,

@@ -5,9 +5,14 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from app.paths import CameraPath, PathKey, builtin_path
 from app.scene import Scene
+
+if TYPE_CHECKING:
+    from app.loaders import LoadOptions
+    from app.progress import Progress
 
 
 def _showroom(lights: int, indirect: bool = False) -> Callable[[], Scene]:
@@ -80,14 +85,18 @@ def resolve_path(name_or_file: str | os.PathLike[str]) -> CameraPath:
     return CameraPath.load(key)
 
 
-def resolve(name_or_path: str | os.PathLike[str]) -> Scene:
+def resolve(
+    name_or_path: str | os.PathLike[str],
+    options: LoadOptions | None = None,
+    progress: Progress | None = None,
+) -> Scene:
     """A built-in scene by name, else a model file (raises SceneLoadError if unusable)."""
     key = str(name_or_path)
     if key in BUILTIN:
         return BUILTIN[key]()
     from app.loaders import load_scene
 
-    return load_scene(Path(key).expanduser())
+    return load_scene(Path(key).expanduser(), options, progress)
 
 
 def default_path(scene: Scene) -> CameraPath:

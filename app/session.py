@@ -45,6 +45,11 @@ class Session:
         self._frame = -2  # last path frame applied (-2: none)
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
+        """Switch scenes; everything indexed by the old scene's meshes is forgotten first."""
+        self.gazed = None
+        self.levels = None
+        self.edge = []
+        self.tcr = None
         self.scene = scene
         self.caster = RayCaster(scene.triangles(), scene.triangle_owner())
         self.walker.caster = self.caster
@@ -106,7 +111,7 @@ class Session:
         m = self.motion
         m.move_on, m.move_off, m.window_s = t.move_on, t.move_off, t.window_s
         m.update(dt, self.viewpoint_speed, self.gaze.state.fixed)
-        self.gazed = self.gazed_index()
+        self.gazed = self.gazed_index(*self.eye_size)
         self.edge = self.edge_caps()
         if self.tcr is not None:
             self.levels = [
@@ -196,5 +201,7 @@ class Session:
     def gazed_object(self) -> str | None:
         """Name of the mesh under the gaze (as of the last tick), or None."""
         if self.scene is None or self.gazed is None:
+            return None
+        if not 0 <= self.gazed < len(self.scene.meshes):
             return None
         return self.scene.meshes[self.gazed].name

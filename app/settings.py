@@ -310,6 +310,14 @@ class SceneSettings:
         "or a factor such as 0.01 for centimetres or 0.0254 for inches",
         label="units (m per unit)",
         check=_unit_scale,
+        choice_labels={
+            "auto": "auto (as the file says)",
+            "1.0": "metres (1)",
+            "0.01": "centimetres (0.01)",
+            "0.001": "millimetres (0.001)",
+            "0.0254": "inches (0.0254)",
+            "0.3048": "feet (0.3048)",
+        },
     )
     max_texture_px: int = _opt(
         8192,

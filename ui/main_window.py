@@ -12,7 +12,9 @@ import json
 import logging
 import os
 import sys
+import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from PyQt6.QtCore import QBuffer, QEvent, QIODevice, QObject, Qt, QTimer
@@ -32,8 +34,9 @@ from PyQt6.QtWidgets import (
 from app import scenes
 from app.fileio import atomic_write_bytes, atomic_write_json
 from app.indirect import PhotonService, wanted
-from app.loaders import SUPPORTED_EXTENSIONS, SceneLoadError
+from app.loaders import SUPPORTED_EXTENSIONS, LoadOptions, SceneLoadError
 from app.paths import CameraPath
+from app.progress import LoadCancelled, Progress
 from app.scene import Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings, SettingsError
@@ -76,7 +79,7 @@ class MainWindow(QMainWindow):
         self._loader = concurrent.futures.ThreadPoolExecutor(max_workers=1)
         self._load_poll = QTimer(self)
         self._load_poll.timeout.connect(self._check_load)
-        self._loading: tuple[concurrent.futures.Future, str, QProgressDialog] | None = None
+        self._loading: _Loading | None = None
         self.normal_mode = False
         # Photon maps are traced on the service's worker thread; the view keeps rendering meanwhile.
         self.photon_cache = PhotonService()
@@ -85,7 +88,9 @@ class MainWindow(QMainWindow):
         self._photon_timer.timeout.connect(self._check_photons)
         self._photon_timer.start(100)
 
-        self.panel = SettingsPanel(self.settings, ("stereo", "render", "navigation", "gaze"))
+        self.panel = SettingsPanel(
+            self.settings, ("stereo", "render", "navigation", "gaze", "scene")
+        )
         self.tcr_panel = TcrPanel(self.session, on_change=self._setting_changed)
         self.cps_panel = CpsPanel(self.settings, self._cps_stats, on_change=self._setting_changed)
         self.photon_panel = PhotonPanel(
@@ -194,16 +199,27 @@ class MainWindow(QMainWindow):
             self.load(path)
 
     def load(self, name_or_path: str) -> None:
-        """Load on a worker thread; the progress dialog stays until it is done."""
+        """Load on a worker thread behind a progress dialog with Cancel (shown after 0.3 s)."""
         if self._loading is not None:
             return
-        dialog = QProgressDialog(f"Loading {Path(name_or_path).name}…", None, 0, 0, self)
+        dialog = QProgressDialog(f"Loading {Path(name_or_path).name}…", "Cancel", 0, 1000, self)
         dialog.setWindowTitle("Loading scene")
         dialog.setWindowModality(Qt.WindowModality.WindowModal)
-        dialog.setMinimumDuration(300)
-        future = self._loader.submit(_load_with_session, name_or_path, self.settings)
-        self._loading = (future, name_or_path, dialog)
+        dialog.setAutoClose(False)
+        dialog.setAutoReset(False)
+        dialog.setMinimumDuration(1 << 30)  # shown by _check_load once the load takes 0.3 s
+        report = _LatestProgress()
+        progress = Progress(report, threading.Event())
+        dialog.canceled.connect(progress.cancel.set)
+        options = LoadOptions.from_settings(self.settings.scene)
+        future = self._loader.submit(_load_with_session, name_or_path, options, progress)
+        self._loading = _Loading(future, name_or_path, dialog, report, progress, time.monotonic())
         self._load_poll.start(30)
+
+    def cancel_load(self) -> None:
+        """Stop the load in progress (the Cancel button); the current scene stays."""
+        if self._loading is not None:
+            self._loading.progress.cancel.set()
 
     def wait_for_load(self, timeout: float = 60.0) -> None:
         """Block (processing events) until the current load finished (tests and scripts)."""
@@ -214,15 +230,34 @@ class MainWindow(QMainWindow):
         QApplication.processEvents()
 
     def _check_load(self) -> None:
-        if self._loading is None or not self._loading[0].done():
+        loading = self._loading
+        if loading is None:
             return
-        future, name, dialog = self._loading
+        if not loading.future.done():
+            if loading.dialog.wasCanceled():
+                loading.progress.cancel.set()
+            fraction, text = loading.report.latest
+            if time.monotonic() - loading.started > _SHOW_PROGRESS_AFTER_S:
+                if not loading.dialog.isVisible() and not loading.progress.cancel.is_set():
+                    loading.dialog.show()
+                loading.dialog.setLabelText(
+                    f"Loading {Path(loading.name).name}…\n{text}"
+                    if not loading.progress.cancel.is_set()
+                    else "Cancelling…"
+                )
+                loading.dialog.setValue(int(1000 * fraction))
+            return
         self._loading = None
         self._load_poll.stop()
-        dialog.reset()
-        dialog.deleteLater()
+        loading.dialog.reset()
+        loading.dialog.hide()
+        loading.dialog.deleteLater()
+        name = loading.name
         try:
-            scene, session_path = future.result()
+            scene, session_path = loading.future.result()
+        except LoadCancelled:
+            self.statusBar().showMessage(f"Loading {Path(name).name} cancelled", 8000)
+            return
         except (SceneLoadError, OSError, ValueError) as exc:
             self.show_error("Cannot open scene", str(exc))
             return
@@ -316,7 +351,19 @@ class MainWindow(QMainWindow):
             self._check_photons()
         if key.startswith("cps."):
             self.session.edge = self.session.edge_caps()  # caps show at once, even when paused
+        if key == "scene.unit_scale":
+            self._reload_file()
         self.view.update()
+
+    def _reload_file(self) -> None:
+        """Load the open model file again (its units changed); built-in scenes stay as they are."""
+        scene = self.session.scene
+        if (
+            scene is not None
+            and scene.source not in ("", "built-in")
+            and Path(scene.source).is_file()
+        ):
+            self.load(scene.source)
 
     def _cps_stats(self) -> dict:
         """Live CPS figures for the panel: the renderer's level shares and samples, and the
@@ -474,8 +521,34 @@ class MainWindow(QMainWindow):
         super().closeEvent(event)
 
 
-def _load_with_session(name: str, settings: Settings) -> tuple[Scene, CameraPath]:
-    scene = scenes.resolve(name)
+_SHOW_PROGRESS_AFTER_S = 0.3
+
+
+class _LatestProgress:
+    """The load's last report, written by the worker and read by the UI thread's poll (one
+    tuple assignment: atomic under the GIL)."""
+
+    def __init__(self) -> None:
+        self.latest: tuple[float, str] = (0.0, "")
+
+    def __call__(self, fraction: float, text: str) -> None:
+        self.latest = (fraction, text)
+
+
+@dataclass
+class _Loading:
+    future: concurrent.futures.Future
+    name: str
+    dialog: QProgressDialog
+    report: _LatestProgress
+    progress: Progress
+    started: float
+
+
+def _load_with_session(
+    name: str, options: LoadOptions, progress: Progress
+) -> tuple[Scene, CameraPath]:
+    scene = scenes.resolve(name, options, progress)
     return scene, scenes.default_path(scene)
 
 

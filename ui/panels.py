@@ -98,6 +98,16 @@ class SettingsForm:
             for data, label in items.items():
                 w.addItem(label, data)
             w.currentIndexChanged.connect(lambda i, k=key, c=w: self.set(k, c.itemData(i)))
+        elif isinstance(value, str):
+            # Free text with suggestions (e.g. units: auto, or a factor): an editable combo box.
+            w = QComboBox()
+            w.setEditable(True)
+            for data, label in (meta.get("choice_labels") or {}).items():
+                w.addItem(label, data)
+            w.activated.connect(lambda i, k=key, c=w: self.set(k, c.itemData(i) or c.itemText(i)))
+            line = w.lineEdit()
+            if line is not None:
+                line.editingFinished.connect(lambda k=key, c=w: self._set_text(k, c))
         elif isinstance(value, int):
             w = QSpinBox()
             w.setRange(
@@ -172,10 +182,24 @@ class SettingsForm:
             finally:
                 w.blockSignals(False)
 
+    def _set_text(self, key: str, combo: QComboBox) -> None:
+        """A typed value: an entry's label means its value; anything else is taken as typed."""
+        text = combo.currentText().strip()
+        index = combo.findText(text)
+        value = combo.itemData(index) if index >= 0 else text
+        if value != self.settings.get(key):
+            self.set(key, value)
+
     def _show(self, key: str, w: QWidget) -> None:
         value = self.settings.get(key)
         if isinstance(w, QCheckBox):
             w.setChecked(bool(value))
+        elif isinstance(w, QComboBox) and w.isEditable():
+            index = w.findData(value)
+            if index >= 0:
+                w.setCurrentIndex(index)
+            else:
+                w.setEditText(str(value))
         elif isinstance(w, QComboBox):
             w.setCurrentIndex(w.findData(value))
         elif isinstance(w, QSpinBox):

@@ -6,10 +6,11 @@ run and machine; only the timings vary.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +26,10 @@ from app.lab.results import (
     MeanErrors,
     PassTimes,
 )
+from app.loaders import LoadOptions
 from app.overlay_text import text_image
 from app.paths import FIXED_DT, CameraPath
+from app.progress import Progress as LoadProgress
 from app.quality import FrameErrors
 from app.session import Session
 from app.settings import Settings
@@ -42,7 +45,8 @@ def _open(
     from render.offscreen import OffscreenHost  # GL only when a run really renders
 
     start = time.perf_counter()
-    scene = scenes.resolve(scene_name)
+    with cli_load_progress(scene_name) as progress:
+        scene = scenes.resolve(scene_name, LoadOptions.from_settings(settings.scene), progress)
     load_s = time.perf_counter() - start
     session = Session(settings)
     session.set_scene(scene, path)
@@ -50,6 +54,22 @@ def _open(
     host.renderer.photons.measure = True  # per-eye gather time (waits for the GPU per eye)
     host.set_scene(scene)
     return scene, session, host, load_s
+
+
+@contextlib.contextmanager
+def cli_load_progress(name: str) -> Iterator[LoadProgress]:
+    """A tqdm bar on stderr for loading ``name`` (shown only on a terminal: logs stay clean)."""
+    from tqdm import tqdm
+
+    with tqdm(
+        total=100, desc=f"loading {Path(name).name}", unit="%", disable=None, leave=False
+    ) as bar:
+
+        def report(fraction: float, text: str) -> None:
+            bar.set_postfix_str(text, refresh=False)
+            bar.update(round(100 * fraction) - bar.n)
+
+        yield LoadProgress(report)
 
 
 class TraceProgress:
