@@ -122,10 +122,12 @@ class Scene:
         """A copy with every non-finite or degenerate piece repaired or dropped (and noted)."""
         notes: list[str] = list(self.warnings)
         meshes = []
+        drops = _Drops()
         for m in self.meshes:
-            fixed = _sanitize_mesh(m, len(self.materials), notes)
+            fixed = _sanitize_mesh(m, len(self.materials), drops)
             if fixed is not None:
                 meshes.append(fixed)
+        notes.extend(drops.notes())
         textures = [_sanitize_texture(t, notes) for t in self.textures]
         materials = [_sanitize_material(mat, len(textures), notes) for mat in self.materials]
         if not materials:
@@ -159,12 +161,42 @@ def _finite(v: float, fallback: float) -> float:
     return v if math.isfinite(v) else fallback
 
 
-def _sanitize_mesh(m: Mesh, n_materials: int, notes: list[str]) -> Mesh | None:
+class _Drops:
+    """What repairing the meshes dropped, told in a few lines rather than one per mesh (a real
+    interior has hundreds of meshes with a sliver triangle or two)."""
+
+    def __init__(self) -> None:
+        self.triangles: dict[str, int] = {}  # mesh name -> triangles dropped
+        self.meshes: list[str] = []  # meshes with nothing valid left
+
+    def notes(self) -> list[str]:
+        out = []
+        if self.triangles:
+            total = sum(self.triangles.values())
+            worst = max(self.triangles, key=lambda k: self.triangles[k])
+            if len(self.triangles) == 1:
+                out.append(f"mesh '{worst}': {total:,} invalid or degenerate triangles dropped")
+            else:
+                out.append(
+                    f"{total:,} invalid or degenerate triangles dropped in "
+                    f"{len(self.triangles)} meshes (most in '{worst}': "
+                    f"{self.triangles[worst]:,})"
+                )
+        if len(self.meshes) == 1:
+            out.append(f"mesh '{self.meshes[0]}': nothing valid left, dropped")
+        elif self.meshes:
+            shown = ", ".join(f"'{n}'" for n in self.meshes[:3])
+            more = f" and {len(self.meshes) - 3} more" if len(self.meshes) > 3 else ""
+            out.append(f"{len(self.meshes)} meshes with nothing valid left dropped ({shown}{more})")
+        return out
+
+
+def _sanitize_mesh(m: Mesh, n_materials: int, drops: _Drops) -> Mesh | None:
     pos = np.asarray(m.positions, np.float32).reshape(-1, 3)
     idx = np.asarray(m.indices).reshape(-1, 3)
     n = pos.shape[0]
     if n == 0 or idx.shape[0] == 0:
-        notes.append(f"mesh '{m.name}': no triangles, dropped")
+        drops.meshes.append(m.name)
         return None
     idx = idx.astype(np.int64)
     ok = np.all((idx >= 0) & (idx < n), axis=1)
@@ -178,10 +210,10 @@ def _sanitize_mesh(m: Mesh, n_materials: int, notes: list[str]) -> Mesh | None:
         ok = keep
     dropped = int((~ok).sum())
     if dropped:
-        notes.append(f"mesh '{m.name}': {dropped} invalid or degenerate triangles dropped")
+        drops.triangles[m.name] = drops.triangles.get(m.name, 0) + dropped
     idx = idx[ok]
     if idx.shape[0] == 0:
-        notes.append(f"mesh '{m.name}': nothing valid left, dropped")
+        drops.meshes.append(m.name)
         return None
     pos = np.where(np.isfinite(pos), pos, 0.0).astype(np.float32)
     normals = np.asarray(m.normals, np.float32).reshape(-1, 3)
