@@ -135,13 +135,16 @@ def _load(p: Path, options: LoadOptions, progress: Progress) -> Scene:
     if spawn.floor_y is None:
         log.info("%s: no interior found, viewing it from outside", p.name)
     progress.report(1.0, "Done")
-    return replace(
+    final = replace(
         scene,
         spawn=spawn.viewpoint,
         floor_y=spawn.floor_y,
         lights=lights,
         warnings=notes,
     ).sanitized()
+    if final.triangle_count == scene.triangle_count:  # repaired already: the same triangles
+        final.ray_caster = caster
+    return final
 
 
 def _check_path(p: Path) -> None:

@@ -1,13 +1,15 @@
 """Ray casting against a triangle soup, for spawning, walking collision and the gazed object.
 
-Embree (through ``embreex`` and trimesh) answers a batch of rays in microseconds; where it is
+Embree (through ``embreex``) answers a batch of rays in microseconds; where it is
 unavailable a vectorised numpy Möller-Trumbore over every triangle gives the same answers, slower.
 """
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
+from typing import Any
 
 import numpy as np
 
@@ -16,29 +18,50 @@ log = logging.getLogger(__name__)
 
 class RayCaster:
     def __init__(self, triangles: np.ndarray, owners: np.ndarray | None = None) -> None:
-        tri = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
+        tri = np.asarray(triangles).reshape(-1, 3, 3)
         finite = np.isfinite(tri).all(axis=(1, 2))
-        self.tri = tri[finite]
+        # float32 as the scene holds it (re-centred by app.placement, so precise enough);
+        # :attr:`tri` gives float64 to the callers that do geometry with it.
+        self._tri32 = np.ascontiguousarray(tri[finite], np.float32)
+        self._tri64: np.ndarray | None = None
         # Index of each kept triangle in the input: callers map cast_triangles() answers back.
         self.source_index = np.flatnonzero(finite)
+        self._dropped = int(tri.shape[0] - self.source_index.shape[0])
         self.owner = (
-            np.asarray(owners)[finite] if owners is not None else np.arange(self.tri.shape[0])
+            np.asarray(owners)[finite] if owners is not None else np.arange(self._tri32.shape[0])
         )
-        self._embree = None
-        if self.tri.shape[0]:
+        self._embree: Any = None
+        if self._tri32.shape[0]:
             try:
-                import trimesh
-                from trimesh.ray.ray_pyembree import RayMeshIntersector
+                from embreex import rtcore_scene
+                from embreex.mesh_construction import TriangleMesh
 
-                mesh = trimesh.Trimesh(
-                    vertices=self.tri.reshape(-1, 3),
-                    faces=np.arange(self.tri.shape[0] * 3).reshape(-1, 3),
-                    process=False,
-                    validate=False,
-                )
-                self._embree = RayMeshIntersector(mesh, scale_to_box=False)
+                # A triangle soup straight to embree: no trimesh mesh (its float64 vertices
+                # and int64 faces), and embree builds a soup about twice as fast as an
+                # indexed mesh. The hierarchy itself is built on the first query.
+                self._embree = rtcore_scene.EmbreeScene()
+                TriangleMesh(self._embree, self._tri32)
             except Exception as exc:  # noqa: BLE001 - any import/build failure: use numpy
+                self._embree = None
                 log.info("embree unavailable (%s); using numpy ray casting", exc)
+
+    @property
+    def tri(self) -> np.ndarray:
+        """The kept triangles, (T, 3, 3) float64."""
+        if self._tri64 is None:
+            self._tri64 = self._tri32.astype(np.float64)
+        return self._tri64
+
+    def with_owners(self, owners: np.ndarray) -> RayCaster:
+        """The same built caster answering with other owner ids (one per input triangle):
+        building embree's hierarchy takes seconds for a million triangles, so the load's caster
+        (owners: triangle indices) serves the session (owners: mesh indices) too."""
+        owners = np.asarray(owners)
+        if owners.shape[0] != self.source_index.shape[0] + self._dropped:
+            raise ValueError("one owner per input triangle is needed")
+        twin = copy.copy(self)
+        twin.owner = owners[self.source_index]
+        return twin
 
     def cast_many(
         self, origins, directions, t_max: float = math.inf
@@ -64,18 +87,18 @@ class RayCaster:
         norm = np.linalg.norm(d, axis=1)
         valid = np.isfinite(o).all(axis=1) & np.isfinite(d).all(axis=1) & (norm > 1e-12)
         valid &= np.abs(o).max(axis=1, initial=0.0) < 1e15
-        if not valid.any() or self.tri.shape[0] == 0:
+        if not valid.any() or self._tri32.shape[0] == 0:
             return dist, tri
         idx = np.flatnonzero(valid)
         ov, dv = o[idx], d[idx] / norm[idx, None]
         if self._embree is not None:
-            # The raw embree query: one call, no per-hit location refinement (trimesh's
-            # intersects_location re-casts rays to compute locations, several times slower).
-            wrap = self._embree._scene
-            res = wrap.run(ov, dv, output=1)
+            # One embree query for the batch, no per-hit location refinement.
+            res = self._embree.run(
+                np.ascontiguousarray(ov, np.float32), np.ascontiguousarray(dv, np.float32), output=1
+            )
             prim = np.asarray(res["primID"], np.int64)
-            t = np.asarray(res["tfar"], np.float64) / wrap.scale  # embree works scaled
-            hit = (prim >= 0) & (prim < self.tri.shape[0]) & np.isfinite(t) & (t >= 0.0)
+            t = np.asarray(res["tfar"], np.float64)
+            hit = (prim >= 0) & (prim < self._tri32.shape[0]) & np.isfinite(t) & (t >= 0.0)
             dist[idx[hit]] = t[hit]
             tri[idx[hit]] = prim[hit]
         else:

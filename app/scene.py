@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -93,6 +94,9 @@ class Scene:
     # origin to it: file position = scene position + origin_offset (shown, never rendered with).
     origin_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     warnings: list[str] = field(default_factory=list)
+    # A RayCaster over triangles() with triangle indices as owners, left by the loader so the
+    # session does not build embree's hierarchy a second time; None: build one when needed.
+    ray_caster: Any = field(default=None, repr=False, compare=False)
 
     @property
     def triangle_count(self) -> int:
@@ -153,6 +157,7 @@ class Scene:
             lights=lights,
             spawn=spawn,
             warnings=notes,
+            ray_caster=None,  # the meshes are new arrays: a cached caster may not match them
         )
 
 

@@ -51,7 +51,13 @@ class Session:
         self.edge = []
         self.tcr = None
         self.scene = scene
-        self.caster = RayCaster(scene.triangles(), scene.triangle_owner())
+        owners = scene.triangle_owner()
+        cached = scene.ray_caster
+        self.caster = (
+            cached.with_owners(owners)
+            if isinstance(cached, RayCaster)
+            else RayCaster(scene.triangles(), owners)
+        )
         self.walker.caster = self.caster
         sp = scene.spawn
         self.walker.place(sp.position, sp.yaw_deg, sp.pitch_deg)

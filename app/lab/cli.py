@@ -113,6 +113,19 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="KEY",
         help="also list fps per group: by_state, by_gazed_level, by_gazed_distance_m (repeatable)",
     )
+    lb = sub.add_parser(
+        "load-bench", help="load time, first frame and peak memory of model files (a table)"
+    )
+    lb.add_argument("files", nargs="*", help="model files (.gltf .glb .obj .ply)")
+    lb.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
+    lb.add_argument(
+        "--synthetic",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also a generated room of about N triangles (e.g. 1000000)",
+    )
+    lb.add_argument("--out", default="out/load-bench.json", help="JSON file to write")
     d = sub.add_parser("demo", help="walk the default path headless: screenshots + summary")
     _common(d)
     d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
@@ -209,6 +222,17 @@ def _run(
 
         print(report(args.files, tuple(args.group)))
         return 0
+    if args.command == "load-bench":
+        from app.fileio import atomic_write_json
+        from app.lab import load_bench
+
+        parse_size(args.size)
+        out = Path(args.out)
+        rows = load_bench.run(args.files, args.size, args.synthetic, str(out.parent))
+        atomic_write_json(out, {"rows": rows})
+        print(load_bench.table(rows))
+        print(f"wrote {out}")
+        return 1 if any("error" in r for r in rows) else 0
     if args.command == "render":
         size = parse_size(args.size)
         bench.render_frame(args.scene, args.out, size, args.frame, settings, path)
