@@ -108,7 +108,7 @@ def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = Non
         )
     if auto_units:
         try:
-            note = unit_warning(scene, spawn)
+            note = unit_warning(scene, spawn, caster)
         except Exception:  # noqa: BLE001 - a check must not stop a load
             log.exception("the units check failed on %s", scene.name)
             note = None
@@ -121,8 +121,11 @@ def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = Non
     ).sanitized()
 
 
-def unit_warning(scene: Scene, spawn: SpawnResult) -> str | None:
-    """A sentence when the model, taken as metres, is implausible for a person, else None."""
+def unit_warning(scene: Scene, spawn: SpawnResult, caster: RayCaster | None = None) -> str | None:
+    """A sentence when the model, taken as metres, is implausible for a person, else None.
+
+    ``caster``: built from ``scene.triangles()`` (built here when needed and not given).
+    """
     assumed = "the file's units were taken as metres"
     ceiling = None
     if spawn.floor_y is not None:
@@ -139,9 +142,9 @@ def unit_warning(scene: Scene, spawn: SpawnResult) -> str | None:
         return None
     if ceiling is None and size > _TRY_UNITS_BEYOND_M:
         tris = scene.triangles().astype(np.float64)
+        base = caster if caster is not None else RayCaster(tris)
         for factor, name in _UNITS:
-            scaled = tris * factor
-            room = interior_spawn(scaled, RayCaster(scaled))
+            room = interior_spawn(tris * factor, _ScaledCaster(base, factor))
             lo_h, hi_h = _ROOM_HEAD_ROOM_M
             if room is not None and lo_h <= room.head_room <= hi_h:
                 return (
@@ -157,6 +160,25 @@ def unit_warning(scene: Scene, spawn: SpawnResult) -> str | None:
             "a building, its units are larger: set scene.unit_scale to the metres per unit"
         )
     return None if ceiling is None else ceiling + _advice(None)
+
+
+class _ScaledCaster(RayCaster):
+    """``base``'s scene scaled by ``factor`` about the origin, without building another BVH."""
+
+    def __init__(self, base: RayCaster, factor: float) -> None:  # shares base: no super()
+        self.base = base
+        self.factor = float(factor)
+        self.tri = base.tri
+        self.source_index = base.source_index
+        self.owner = base.owner
+        self._embree = None
+
+    def cast_triangles(
+        self, origins, directions, t_max: float = math.inf
+    ) -> tuple[np.ndarray, np.ndarray]:
+        o = np.asarray(origins, np.float64) / self.factor
+        dist, tri = self.base.cast_triangles(o, directions, t_max / self.factor)
+        return dist * self.factor, tri
 
 
 def _unit_for(length: float, plausible: tuple[float, float]) -> tuple[float, str] | None:

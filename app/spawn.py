@@ -34,6 +34,7 @@ _MAX_WALL_M = 150.0
 # plane or a sky box does not spread the columns thin: up to this many of the widest triangles are
 # left out when they are this many times wider than all the rest.
 _MAX_OUTLIERS = 64
+_REFINE_CELL_M = 0.3  # a first search coarser than this is refined over the level it found
 _OUTLIER_SPAN = 3.0
 _FRONT_FACING_FRACTION = 0.5  # of those hits, the share that must face the eye
 _MIN_REVERSED_ROOM_M2 = 20.0  # floor area that makes an inside-out enclosure a room
@@ -108,6 +109,21 @@ def interior_spawn(tris: np.ndarray, caster: RayCaster) -> SpawnResult | None:
     found = _interior_spawn(caster, normals, dense_lo, dense_hi, lo, hi)
     if found is None and (np.any(dense_lo > lo) or np.any(dense_hi < hi)):
         found = _interior_spawn(caster, normals, lo, hi, lo, hi)  # the room is the sparse part
+    if found is None:
+        return None
+    # A room found on a coarse grid (a house in a large terrain or a city block): search again
+    # over that level alone, so the spawn is placed to a few tens of centimetres.
+    cell = math.sqrt(found.cell_area)
+    pts = found.level_points
+    r_lo = np.array([pts[:, 0].min() - cell, lo[1], pts[:, 2].min() - cell])
+    r_hi = np.array([pts[:, 0].max() + cell, hi[1], pts[:, 2].max() + cell])
+    r_lo, r_hi = np.maximum(r_lo, lo), np.minimum(r_hi, hi)
+    searched = float(np.prod((dense_hi - dense_lo)[[0, 2]]))
+    if cell > _REFINE_CELL_M and float(np.prod((r_hi - r_lo)[[0, 2]])) < 0.5 * searched:
+        fine = _interior_spawn(caster, normals, r_lo, r_hi, lo, hi)
+        if fine is not None and fine.floor_y is not None and found.floor_y is not None:
+            if abs(fine.floor_y - found.floor_y) <= _LEVEL_BIN_M:
+                return fine
     return found
 
 

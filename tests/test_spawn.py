@@ -122,6 +122,26 @@ def test_sky_box_around_the_room() -> None:
     assert_inside(prepared(scene_of(meshes)), (-3.0, 0.0, -4.0), (3.0, 2.7, 4.0))
 
 
+def terrain_mesh(half: float = 100.0, n: int = 60) -> Mesh:
+    """Rolling ground 2 * half wide, a metre below the house's floor and up to a metre above
+    it far away, as a grid of n x n quads."""
+    g = np.linspace(-half, half, n + 1)
+    x, z = np.meshgrid(g, g, indexing="ij")
+    y = -1.0 + 2.0 * (np.hypot(x, z) / half) ** 2 * (0.5 + 0.5 * np.sin(x / 7.0))
+    pos = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    i = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]
+    a, b, c, d = i.ravel(), i.ravel() + 1, i.ravel() + n + 2, i.ravel() + n + 1
+    return mesh("terrain", pos, np.column_stack([a, b, c, a, c, d]).reshape(-1, 3))
+
+
+def test_house_in_a_large_terrain() -> None:
+    lo, hi = (10.0, 0.0, 20.0), (16.0, 2.6, 28.0)
+    meshes = furnished_room(lo, hi, "house")
+    meshes.append(box_mesh("slab", (9.8, -1.5, 19.8), (16.2, 0.0, 28.2)))
+    meshes.append(terrain_mesh())
+    assert_inside(prepared(scene_of(meshes)), lo, hi)
+
+
 def test_room_with_an_open_side() -> None:
     meshes = furnished_room((-3.0, 0.0, -4.0), (3.0, 2.7, 4.0), skip=(5,))  # no +z wall
     assert_inside(prepared(scene_of(meshes)), (-3.0, 0.0, -4.0), (3.0, 2.7, 4.0))
@@ -165,7 +185,16 @@ def test_room_in_centimetres_read_as_metres_says_what_was_assumed() -> None:
     scene = prepared(scene_of(furnished_room((-300.0, 0.0, -400.0), (300.0, 270.0, 400.0))))
     note = [w for w in scene.warnings if "unit_scale" in w]
     assert len(note) == 1, scene.warnings
-    assert "metres" in note[0] and "centimetres" in note[0] and "0.01" in note[0]
+    assert "taken as metres" in note[0] and "centimetres" in note[0], note
+    assert "set scene.unit_scale to 0.01" in note[0]
+
+
+def test_no_room_in_metres_but_one_in_centimetres_or_inches() -> None:
+    for factor, unit in ((100.0, "centimetres"), (1 / 0.0254, "inches")):
+        scene = place(scene_of(classroom(scale=factor)), None).sanitized()
+        note = placement.unit_warning(scene, spawn.outside_view(scene))
+        assert note is not None and f"read as {unit}" in note, note
+        assert f"set scene.unit_scale to {1 / factor:g}" in note
 
 
 def test_hall_in_centimetres_read_as_metres_warns_about_the_ceiling() -> None:
