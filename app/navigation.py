@@ -8,13 +8,14 @@ through a thin wall nor takes more than one stair per piece; each piece
   height, a cupboard), sliding along it, and at what a ray at shin height hits close ahead;
 * finds the ground under the body's centre and its front edge: the highest surface below the
   feet plus one riser (:data:`STEP_M`). A higher surface cannot be stepped onto at all, and a
-  surface within a riser is a floor only if a person fits above it (:data:`HEAD_ROOM_M`): that
+  surface within a riser is a floor only if a person fits above it (eye height plus
+  :data:`HEAD_ROOM_M`): that
   is what keeps you off a coffee table by its lower shelf and out from under a desk;
 * snaps the feet to ground within a riser up or down (stairs, thresholds).
 
-Ground farther below than a riser (off a landing, off a table) is fallen to under gravity; with
-no ground below at all (a file with no floor) the walker stays at its height. In fly mode there
-is no floor following and no gravity; collision, when on, stops the eye at surfaces.
+Ground farther below than a riser (off a landing, off a table) is fallen to at the end of the
+step; with no ground below at all (a file with no floor) the walker stays at its height. In fly
+mode there is no floor following and no falling; collision, when on, stops the eye at surfaces.
 """
 
 from __future__ import annotations
@@ -29,8 +30,7 @@ from app.settings import NavigationSettings
 
 STEP_M = 0.32  # highest step walked up or down without falling: a stair riser (0.3 m at most)
 SUBSTEP_M = 0.1  # longest piece of a move checked at once (well under a stair's tread)
-HEAD_ROOM_M = 1.75  # free height above a floor a person needs to stand there (from the floor)
-GRAVITY_MPS2 = 9.81
+HEAD_ROOM_M = 0.15  # free height above the eye a person needs to stand somewhere
 _SHIN_M = STEP_M + 0.05  # the shin ray's height above the feet: just over a riser
 # Heights of the body rays above the feet, besides the eye: over the second stair of a flight
 # (two risers up, a tread ahead), a table edge, a worktop.
@@ -47,13 +47,11 @@ class Walker:
         self.position = np.array([0.0, settings.eye_height_m, 0.0])
         self.yaw_deg = 0.0
         self.pitch_deg = 0.0
-        self.fall_speed = 0.0  # m/s downwards while falling
 
     def place(self, position, yaw_deg: float, pitch_deg: float = 0.0) -> None:
         p = np.asarray(position, np.float64)
         if np.isfinite(p).all():
             self.position = p.copy()
-            self.fall_speed = 0.0
         if math.isfinite(yaw_deg):
             self.yaw_deg = yaw_deg % 360.0
         if math.isfinite(pitch_deg):
@@ -74,7 +72,6 @@ class Walker:
         move = (fwd * forward + right * strafe) * s.walk_speed_mps * dt
         if s.fly:
             move = move + np.array([0.0, rise * s.walk_speed_mps * dt, 0.0])
-            self.fall_speed = 0.0
         else:
             move[1] = 0.0
         if not np.isfinite(move).all():
@@ -87,7 +84,7 @@ class Walker:
             else:
                 self._walk(part)
         if not s.fly:
-            self._fall(dt)
+            self._fall()
 
     # -- flying ------------------------------------------------------------------------------
     def _fly(self, move: np.ndarray) -> None:
@@ -116,21 +113,20 @@ class Walker:
         ground = self._ground(self.position[[0, 2]], feet)
         if ground is not None and abs(ground - feet) <= STEP_M:
             self.position[1] = ground + self.settings.eye_height_m  # a step up or down
-            self.fall_speed = 0.0
 
-    def _fall(self, dt: float) -> None:
-        """Fall towards the ground below (none: stay at this height)."""
+    def _fall(self) -> None:
+        """Land on the ground below (none: stay at this height).
+
+        The fall completes within the step: the window steps the walker only while a key is
+        held, so a fall spread over frames would leave the viewer hanging in the air when the
+        key is let go over a stairwell.
+        """
         if self.caster is None:
             return
         feet = self._feet()
         ground = self._ground(self.position[[0, 2]], feet, reach=math.inf)
-        if ground is None or ground >= feet - _EPS:
-            self.fall_speed = 0.0
-            return
-        self.fall_speed += GRAVITY_MPS2 * dt
-        self.position[1] = max(feet - self.fall_speed * dt, ground) + self.settings.eye_height_m
-        if self.position[1] - self.settings.eye_height_m <= ground + _EPS:
-            self.fall_speed = 0.0
+        if ground is not None and ground < feet - _EPS:
+            self.position[1] = ground + self.settings.eye_height_m
 
     def _feet(self) -> float:
         return float(self.position[1] - self.settings.eye_height_m)
@@ -141,8 +137,11 @@ class Walker:
         dist = self._vertical_cast(xz, top, -1.0, reach)
         return top - dist if math.isfinite(dist) else None
 
+    def _needed_room(self) -> float:
+        return self.settings.eye_height_m + HEAD_ROOM_M
+
     def _head_room(self, xz: np.ndarray, ground: float) -> float:
-        return 0.05 + self._vertical_cast(xz, ground + 0.05, 1.0, HEAD_ROOM_M)
+        return 0.05 + self._vertical_cast(xz, ground + 0.05, 1.0, self._needed_room())
 
     def _vertical_cast(self, xz: np.ndarray, y: float, sign: float, reach: float) -> float:
         """Distance up (sign 1) or down (-1) to the first surface that is not a wall.
@@ -201,7 +200,7 @@ class Walker:
                 room = self._head_room(xz, g)
             # Too low to stand: a table top, the space under a desk. Where it is already low
             # (a low attic, a spawn under a beam) only moves that do not make it worse.
-            if room < HEAD_ROOM_M and room < here_room - 0.01:
+            if room < self._needed_room() and room < here_room - 0.01:
                 return True
         return False
 

@@ -112,6 +112,9 @@ def test_walking_off_a_ledge_falls_to_the_floor_below() -> None:
     meshes = hall(height=4.0) + [box_mesh("ledge", (-10.0, 0.0, -1.0), (10.0, 1.0, 10.0))]
     w = Walker(NavigationSettings(), caster_of(meshes))
     w.place((0.0, 1.0 + EYE, 0.0), NORTH)
+    walk(w, NORTH, 2.0, until=lambda p: p[2] < -1.0)  # just over the edge: down at once, so
+    assert w.position[1] == pytest.approx(EYE, abs=1e-6)  # letting go of W leaves no one hanging
+    w.place((0.0, 1.0 + EYE, 0.0), NORTH)
     heights = walk(w, NORTH, 3.0)
     assert w.position[2] < -2.0
     assert w.position[1] == pytest.approx(EYE, abs=1e-6), "floating above the floor"
