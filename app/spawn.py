@@ -22,6 +22,7 @@ EYE_HEIGHT_M = 1.6
 # vault's upper face or a slab's underside, not somewhere to stand.
 _MIN_CLEARANCE_M = EYE_HEIGHT_M + 0.3
 _BODY_RADIUS_M = 0.35  # nearest wall allowed around a spawn candidate at eye height
+_LOW_RING_M = (0.3, 0.6)  # heights above the floor where furniture near the spawn is looked for
 _GRID_TARGET = 2500  # candidate columns for the spawn search; ~60k rays with embree is ~0.1 s
 _MAX_LAYERS = 12  # surfaces peeled per column: roof, vaults, floors, slabs...
 _RING_DIRECTIONS = 16
@@ -252,6 +253,15 @@ def _interior_spawn(
     # Most free space: the largest distance to the nearest wall, then the roomiest on average.
     finite = np.where(np.isfinite(dist), dist, diag)
     free = finite.min(axis=1)
+    # ... also below the eye: not pressed against a sofa or a coffee table, so the first step
+    # forward is not already blocked.
+    low_free = np.full(len(eyes), np.inf)
+    for h in _LOW_RING_M:
+        low = np.column_stack([eyes[:, 0], floor_y + h, eyes[:, 2]])
+        d_low, _ = caster.cast_many(np.repeat(low, len(ring), axis=0), np.tile(ring, (len(low), 1)))
+        d_low = np.where(np.isfinite(d_low), d_low, diag).reshape(len(eyes), len(ring))
+        low_free = np.minimum(low_free, d_low.min(axis=1))
+    free = np.minimum(free, low_free)
     score = free + 0.01 * finite.mean(axis=1)
     best = int(np.argmax(score))
     eye = eyes[best]

@@ -7,6 +7,7 @@ through the loader's own placement and spawn steps; the shared interiors are loa
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,11 @@ from app.raycast import RayCaster
 from app.scene import Material, Mesh, Scene, vertex_normals
 from app.spawn import EYE_HEIGHT_M, _main_level
 
-SCENES = Path("/work/shared/scenes")
+# The shared scenes, found as tests/test_loaders.py finds them.
+SCENES = Path(
+    os.environ.get("VRPREVIEW_SCENES")
+    or Path(__file__).resolve().parents[1].parent / "shared" / "scenes"
+)
 
 # Outward-facing (counter-clockwise seen from outside) quads over a box's corners, ordered
 # x-major as in box_mesh.

@@ -4,15 +4,13 @@ staircase)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from app.navigation import STEP_M, Walker
 from app.raycast import RayCaster
 from app.settings import NavigationSettings
-from tests.test_spawn import box_mesh, scene_of
+from tests.test_spawn import SCENES, box_mesh, scene_of
 
 EYE = 1.6
 NORTH, WEST, SOUTH, EAST = 0.0, 90.0, 180.0, 270.0  # yaw: 0 looks down -z, 90 down -x
@@ -186,7 +184,7 @@ def test_showroom_walk_keeps_eye_height() -> None:
 # floor, and back down
 # ------------------------------------------------------------------------------------------
 
-STAIRCASE = Path("/work/shared/scenes/interiors/staircase/staircase.gltf")
+STAIRCASE = SCENES / "interiors" / "staircase" / "staircase.gltf"
 
 
 @pytest.fixture(scope="module")
