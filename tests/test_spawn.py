@@ -319,3 +319,24 @@ def test_shared_interiors_spawn_inside_on_the_main_floor(interior) -> None:
     ahead, _ = caster.cast(scene.spawn.position, forward(scene.spawn.yaw_deg))
     assert math.isfinite(ahead) and ahead > 1.0, "facing a wall, or out of the room"
     assert not spawn_warnings(scene), scene.warnings
+
+
+def write_obj(path: Path, meshes: list[Mesh]) -> Path:
+    lines, first = [], 1
+    for m in meshes:
+        lines.append(f"o {m.name}")
+        lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in np.asarray(m.positions)]
+        lines += [f"f {a + first} {b + first} {c + first}" for a, b, c in m.indices]
+        first += len(m.positions)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_loading_a_centimetre_file_with_and_without_unit_scale(tmp_path: Path) -> None:
+    from app.loaders import LoadOptions, load_scene
+
+    path = write_obj(tmp_path / "classroom_cm.obj", classroom(scale=100.0))
+    scene = load_scene(path, LoadOptions(unit_scale=0.01))
+    assert_inside(scene, CLASS_LO, CLASS_HI)
+    auto = load_scene(path)
+    assert any("set scene.unit_scale to 0.01" in w for w in auto.warnings), auto.warnings
