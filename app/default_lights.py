@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -10,8 +11,30 @@ from app.raycast import RayCaster
 from app.scene import PointLight, Scene
 from app.spawn import EYE_HEIGHT_M, SpawnResult
 
+log = logging.getLogger(__name__)
+
 _LIGHT_TARGET_RADIANCE = 1.0  # per default light, at a typical surface distance
 _M_PER_LIGHT = 150.0  # floor area one default interior light is expected to cover (m^2)
+
+
+def safe_default_lights(
+    scene: Scene, spawn: SpawnResult, caster: RayCaster
+) -> tuple[list[PointLight], list[str]]:
+    """:func:`default_lights` that never raises: a failure gives one light above the centre."""
+    try:
+        return default_lights(scene, spawn, caster), []
+    except Exception as exc:  # noqa: BLE001 - a lighting bug must not stop a load
+        log.exception("default lights failed on %s", scene.name)
+        lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
+        lo, hi = np.nan_to_num(lo), np.nan_to_num(hi)
+        diag = max(float(np.linalg.norm(hi - lo)), 1.0)
+        centre = (lo + hi) / 2.0
+        pos = (float(centre[0]), float(min(hi[1], centre[1] + diag / 4.0)), float(centre[2]))
+        light = PointLight(pos, (1.0, 1.0, 1.0), float(diag * diag / 4.0 + 1.0), float(diag))
+        return [light], [
+            f"could not place the default lights (an unexpected {type(exc).__name__}; "
+            "details in the log): added one light above the centre"
+        ]
 
 
 def default_lights(scene: Scene, spawn: SpawnResult, caster: RayCaster) -> list[PointLight]:

@@ -30,21 +30,16 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
-from app.default_lights import default_lights
 from app.errors import SceneLoadError
 from app.gltf import gltf_lights, gltf_wants_indirect, read_gltf_json
-from app.placement import place
+from app.placement import finish_scene, place
 from app.progress import LoadCancelled, Progress
-from app.raycast import RayCaster
 from app.scene import Scene
 from app.scene_builder import SceneBuilder
 from app.settings import SceneSettings
-from app.spawn import find_spawn
 from app.trimesh_files import trimesh_load
 
 log = logging.getLogger(__name__)
@@ -121,30 +116,9 @@ def _load(p: Path, options: LoadOptions, progress: Progress) -> Scene:
             "(every vertex position is broken or every triangle is flat)."
         )
     progress.report(0.85, "Finding where to stand")
-    caster = RayCaster(scene.triangles(), np.arange(scene.triangle_count))
-    spawn = find_spawn(scene, caster)
-    notes = list(scene.warnings)
-    lights = scene.lights
-    if not lights:
-        progress.report(0.95, "Adding lights")
-        lights = default_lights(scene, spawn, caster)
-        notes.append(
-            f"the file has no lights: added {len(lights)} default point "
-            f"light{'s' if len(lights) != 1 else ''} so the scene is visible"
-        )
-    if spawn.floor_y is None:
-        log.info("%s: no interior found, viewing it from outside", p.name)
+    scene = finish_scene(scene, options.unit_scale is None, progress)
     progress.report(1.0, "Done")
-    final = replace(
-        scene,
-        spawn=spawn.viewpoint,
-        floor_y=spawn.floor_y,
-        lights=lights,
-        warnings=notes,
-    ).sanitized()
-    if final.triangle_count == scene.triangle_count:  # repaired already: the same triangles
-        final.ray_caster = caster
-    return final
+    return scene
 
 
 def _check_path(p: Path) -> None:

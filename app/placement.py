@@ -8,15 +8,34 @@ millimetres. The offset is kept on the scene for display.
 
 from __future__ import annotations
 
+import logging
+import math
 from dataclasses import replace
 
 import numpy as np
 
+from app.default_lights import safe_default_lights
+from app.progress import Progress
+from app.raycast import RayCaster
 from app.scene import PointLight, Scene
+from app.spawn import SpawnResult, interior_spawn, safe_find_spawn
+
+log = logging.getLogger(__name__)
 
 # Beyond this distance from the origin (in metres) float32 spacing reaches a tenth of a
 # millimetre, so the model is re-centred.
 RECENTRE_BEYOND_M = 2048.0
+
+# Plausible for a person (auto units): head room above the spawn up to this (a cathedral's nave
+# is 30 m; a room in centimetres read as metres is 250 m and more), a whole model between these.
+MAX_PLAUSIBLE_HEAD_ROOM_M = 40.0
+MIN_PLAUSIBLE_MODEL_M = 0.5
+MAX_PLAUSIBLE_MODEL_M = 2000.0
+# A model with no room in metres this large is tried in these units (an interior found at one of
+# them with a person's ceiling is what the file most likely meant).
+_TRY_UNITS_BEYOND_M = 50.0
+_UNITS = ((0.01, "centimetres"), (0.0254, "inches"), (0.001, "millimetres"), (0.3048, "feet"))
+_ROOM_HEAD_ROOM_M = (2.0, 8.0)  # the head room a room in the right units has
 
 
 def place(scene: Scene, unit_scale: float | None) -> Scene:
@@ -53,9 +72,9 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
     ]
     warnings = list(scene.warnings)
     if offset.any():
+        dx, dy, dz = (0.0 - float(v) for v in offset)
         warnings.append(
-            "the model lies far from the origin: moved by "
-            f"({0.0 - offset[0]:.1f}, {0.0 - offset[1]:.1f}, {0.0 - offset[2]:.1f}) m "
+            f"the model lies far from the origin: moved by ({dx:.1f}, {dy:.1f}, {dz:.1f}) m "
             "to keep its precision"
         )
     return replace(
@@ -66,3 +85,117 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
         origin_offset=(float(offset[0]), float(offset[1]), float(offset[2])),
         warnings=warnings,
     )
+
+
+def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = None) -> Scene:
+    """Find where to stand, light a file without lights and check the units; never raises.
+
+    ``scene`` is placed and sanitized; ``auto_units``: the units were not set (scene.unit_scale
+    "auto"), so an implausible size is worth a warning saying what was assumed.
+    """
+    progress = progress or Progress()
+    caster = RayCaster(scene.triangles(), np.arange(scene.triangle_count))
+    spawn, notes = safe_find_spawn(scene, caster)
+    notes = list(scene.warnings) + notes
+    lights = scene.lights
+    if not lights:
+        progress.report(0.95, "Adding lights")
+        lights, light_notes = safe_default_lights(scene, spawn, caster)
+        notes += light_notes
+        notes.append(
+            f"the file has no lights: added {len(lights)} default point "
+            f"light{'s' if len(lights) != 1 else ''} so the scene is visible"
+        )
+    if auto_units:
+        try:
+            note = unit_warning(scene, spawn, caster)
+        except Exception:  # noqa: BLE001 - a check must not stop a load
+            log.exception("the units check failed on %s", scene.name)
+            note = None
+        if note:
+            notes.append(note)
+    if spawn.floor_y is None:
+        log.info("%s: no interior found, viewing it from outside", scene.name)
+    final = replace(
+        scene, spawn=spawn.viewpoint, floor_y=spawn.floor_y, lights=lights, warnings=notes
+    ).sanitized()
+    if final.triangle_count == scene.triangle_count:  # repaired already: the same triangles
+        final.ray_caster = caster  # the session reuses it: one embree build per load
+    return final
+
+
+def unit_warning(scene: Scene, spawn: SpawnResult, caster: RayCaster | None = None) -> str | None:
+    """A sentence when the model, taken as metres, is implausible for a person, else None.
+
+    ``caster``: built from ``scene.triangles()`` (built here when needed and not given).
+    """
+    assumed = "the file's units were taken as metres"
+    ceiling = None
+    if spawn.floor_y is not None:
+        head = spawn.head_room
+        if not (math.isfinite(head) and head > MAX_PLAUSIBLE_HEAD_ROOM_M):
+            return None  # a room a person fits in: whatever the rest of the file holds
+        ceiling = f"the room's ceiling is {head:.0f} m high: {assumed}"
+        unit = _unit_for(head, _ROOM_HEAD_ROOM_M)
+        if unit is not None:
+            return ceiling + _advice(unit)
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
+    size = float(np.max(hi - lo))
+    if not math.isfinite(size) or size <= 0.0:
+        return None
+    if ceiling is None and size > _TRY_UNITS_BEYOND_M:
+        tris = scene.triangles().astype(np.float64)
+        base = caster if caster is not None else RayCaster(tris)
+        for factor, name in _UNITS:
+            room = interior_spawn(tris * factor, _ScaledCaster(base, factor))
+            lo_h, hi_h = _ROOM_HEAD_ROOM_M
+            if room is not None and lo_h <= room.head_room <= hi_h:
+                return (
+                    f"no room to stand in was found with {assumed}; read as {name} it is "
+                    f"a room {room.head_room:.1f} m high" + _advice((factor, name))
+                )
+    if size > MAX_PLAUSIBLE_MODEL_M:
+        unit = _unit_for(size, (1.0, 500.0))
+        return f"the model is {size / 1000.0:.0f} km across: {assumed}" + _advice(unit)
+    if size < MIN_PLAUSIBLE_MODEL_M:
+        return (
+            f"the model is only {size * 100.0:.1f} cm across: {assumed}; if it is a room or "
+            "a building, its units are larger: set scene.unit_scale to the metres per unit"
+        )
+    return None if ceiling is None else ceiling + _advice(None)
+
+
+class _ScaledCaster(RayCaster):
+    """``base``'s scene scaled by ``factor`` about the origin, without building another BVH."""
+
+    def __init__(self, base: RayCaster, factor: float) -> None:  # shares base: no super()
+        self.base = base
+        self.factor = float(factor)
+        self._tri32 = base._tri32
+        self._tri64 = None
+        self._dropped = base._dropped
+        self.source_index = base.source_index
+        self.owner = base.owner
+        self._embree = None
+
+    def cast_triangles(
+        self, origins, directions, t_max: float = math.inf
+    ) -> tuple[np.ndarray, np.ndarray]:
+        o = np.asarray(origins, np.float64) / self.factor
+        dist, tri = self.base.cast_triangles(o, directions, t_max / self.factor)
+        return dist * self.factor, tri
+
+
+def _unit_for(length: float, plausible: tuple[float, float]) -> tuple[float, str] | None:
+    """The first of the usual units that brings ``length`` into the plausible range."""
+    for factor, name in _UNITS:
+        if plausible[0] <= length * factor <= plausible[1]:
+            return factor, name
+    return None
+
+
+def _advice(unit: tuple[float, str] | None) -> str:
+    if unit is None:
+        return "; set scene.unit_scale to the metres per file unit"
+    factor, name = unit
+    return f"; if it was modelled in {name}, set scene.unit_scale to {factor:g}"

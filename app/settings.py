@@ -94,7 +94,9 @@ class NavigationSettings:
     eye_height_m: float = _opt(1.6, "eye height above the floor (m)", lo=0.1, hi=3.0)
     radius_m: float = _opt(0.25, "body radius for collision (m)", lo=0.0, hi=2.0)
     collision: bool = _opt(True, "stop at walls")
-    fly: bool = _opt(False, "fly freely instead of walking on the floor")
+    fly: bool = _opt(
+        False, "fly freely instead of walking on the floor (no floor following; collision optional)"
+    )
 
 
 @dataclass

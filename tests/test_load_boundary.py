@@ -19,10 +19,10 @@ from tests.test_scene_switch import box_obj
 def test_an_unexpected_error_inside_becomes_one_sentence_naming_the_file(
     tmp_path, monkeypatch, caplog, error
 ):
-    def broken(*_a, **_k):
+    def broken(*_a, **_k):  # a bug while placing the geometry
         raise error
 
-    monkeypatch.setattr(app.loaders, "find_spawn", broken)
+    monkeypatch.setattr(app.loaders, "place", broken)
     with caplog.at_level(logging.ERROR), pytest.raises(SceneLoadError) as info:
         load_scene(box_obj(tmp_path / "Kitchen v2.obj", 2))
     message = str(info.value)
@@ -41,7 +41,7 @@ def test_a_memory_or_recursion_error_is_explained(tmp_path, monkeypatch):
         def broken(*_a, _e=error, **_k):
             raise _e
 
-        monkeypatch.setattr(app.loaders, "find_spawn", broken)
+        monkeypatch.setattr(app.loaders, "place", broken)
         with pytest.raises(SceneLoadError, match=words):
             load_scene(box_obj(tmp_path / "room.obj", 1))
 

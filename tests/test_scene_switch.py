@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PyQt6.QtWidgets import QApplication, QMessageBox, QPushButton
 
-import app.loaders
+import app.placement
 from app.scene import Material, Mesh, Scene, Viewpoint, vertex_normals
 from app.session import Session
 from app.settings import Settings
@@ -121,13 +121,13 @@ def test_switching_scenes_fifty_times_logs_no_error(window, qtbot, tmp_path, sce
 
 
 def test_a_slow_load_shows_progress_and_can_be_cancelled(window, qtbot, tmp_path, monkeypatch):
-    original = app.loaders.find_spawn
+    original = app.placement.safe_find_spawn
 
     def slow_spawn(*args, **kwargs):
         time.sleep(1.5)  # a big room: the spawn search takes a while
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(app.loaders, "find_spawn", slow_spawn)
+    monkeypatch.setattr(app.placement, "safe_find_spawn", slow_spawn)
     shown = []
     monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: shown.append(a))
     before = window.session.scene
