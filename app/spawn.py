@@ -89,7 +89,9 @@ def find_spawn(scene: Scene, caster: RayCaster | None = None) -> SpawnResult:
     ``caster`` must have been built from ``scene.triangles()`` with triangle indices as owners
     (as :func:`load_scene` does); it is built here when not given.
     """
-    tris = scene.triangles().astype(np.float64)
+    # float32 as the scene holds it (re-centred, so precise to well under a millimetre): a
+    # float64 copy would double the search's memory on a million-triangle room.
+    tris = scene.triangles()
     if caster is None:
         caster = RayCaster(tris, np.arange(len(tris)))
     lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
@@ -167,7 +169,8 @@ def _dense_box(tris: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nda
 
 def _triangle_normals(tris: np.ndarray) -> np.ndarray:
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    return n
 
 
 def _ring(n: int) -> np.ndarray:
