@@ -1,23 +1,97 @@
-"""OBJ and PLY files (and anything else trimesh reads), as trimesh's scene."""
+"""OBJ and PLY files (and anything else trimesh reads), as trimesh's scene.
+
+Before trimesh sees an OBJ or PLY file it is checked and, where that is safe, repaired:
+
+* text that is not UTF-8 (Windows exporters write cp1252/Latin-1 names and comments) is decoded
+  as cp1252, falling back to Latin-1, for the OBJ, its MTL files and a PLY header; file names the
+  OBJ or MTL refer to are found whether they are stored on disk UTF-8 or Latin-1 encoded;
+* an OBJ vertex line with fewer than three numbers becomes a NaN vertex, so the face indices
+  after it still point where the author meant and :meth:`Scene.sanitized` drops (and reports)
+  the triangles that use it;
+* a PLY header is read first: element counts that the data cannot hold (a truncated file, or a
+  1 KB file claiming 2^31 vertices) or that would need more than ``max_memory_mb`` are refused
+  before anything is allocated, and so is an OBJ too big for the limit;
+* a binary PLY whose data is in the other byte order than its header says is read in the order
+  that gives valid faces (with a warning); faces whose indices point past the vertices are
+  dropped with a warning.
+"""
 
 from __future__ import annotations
 
+import io
+import logging
+import os
+import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from app.errors import SceneLoadError
 
+log = logging.getLogger(__name__)
 
-def trimesh_load(path: Path) -> Any:
+# In-memory bytes per byte of OBJ text, a rough upper bound for trimesh's parser.
+_OBJ_MEMORY_PER_BYTE = 10
+
+_PLY_SIZES = {
+    "char": 1,
+    "uchar": 1,
+    "int8": 1,
+    "uint8": 1,
+    "short": 2,
+    "ushort": 2,
+    "int16": 2,
+    "uint16": 2,
+    "int": 4,
+    "uint": 4,
+    "int32": 4,
+    "uint32": 4,
+    "float": 4,
+    "float32": 4,
+    "double": 8,
+    "float64": 8,
+}
+_PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
+# An OBJ vertex line with fewer than three fields after the 'v'.
+_SHORT_VERTEX = re.compile(r"^([ \t]*)v(?:[ \t]+[^ \t\r\n]+){0,2}[ \t\r]*$", re.MULTILINE)
+
+
+def trimesh_load(path: Path, max_memory_mb: int = 8192, warnings: list[str] | None = None) -> Any:
     """trimesh's scene, with every parser failure turned into a message for the user.
 
     ``process=False`` keeps the data as authored: trimesh would otherwise merge vertices and
     silently drop NaN ones, and :meth:`Scene.sanitized` is where repairs are made and reported.
+    Repairs made here are appended to ``warnings`` (and logged).
     """
+    notes: list[str] = []
+    try:
+        return _load(path, max_memory_mb, notes)
+    finally:
+        for note in notes:
+            log.warning("%s: %s", path.name, note)
+        if warnings is not None:
+            warnings.extend(notes)
+
+
+def _load(path: Path, max_memory_mb: int, notes: list[str]) -> Any:
     import trimesh
 
+    ext = path.suffix.lower()
     try:
-        return trimesh.load_scene(str(path), process=False)
+        if ext == ".obj":
+            data = _obj_bytes(path, _read_bytes(path), max_memory_mb, notes)
+            scene = _parse(trimesh, io.BytesIO(data), "obj", path)
+        elif ext == ".ply":
+            raw = _read_bytes(path)
+            fmt, data = _checked_ply(path, raw, max_memory_mb)
+            scene = _parse(trimesh, io.BytesIO(data), "ply", path)
+            if fmt != "ascii" and _bad_face_count(scene):
+                scene = _try_other_byte_order(trimesh, path, fmt, data, scene, notes)
+        else:
+            scene = trimesh.load_scene(str(path), process=False)
+    except SceneLoadError:
+        raise
     except FileNotFoundError as exc:
         missing = Path(exc.filename).name if exc.filename else str(exc)
         raise SceneLoadError(
@@ -36,5 +110,263 @@ def trimesh_load(path: Path) -> Any:
             detail = detail[:200] + "..."
         raise SceneLoadError(
             f"Cannot read '{path.name}': the file is damaged or not a valid "
-            f"{path.suffix.lower().lstrip('.').upper()} file ({detail})."
+            f"{ext.lstrip('.').upper()} file ({detail})."
         ) from exc
+    _drop_bad_faces(scene, notes)
+    return scene
+
+
+def _parse(trimesh: Any, data: io.BytesIO, file_type: str, path: Path) -> Any:
+    return trimesh.load_scene(
+        data,
+        file_type=file_type,
+        resolver=_resolver(str(path)),
+        process=False,
+        metadata={"file_name": path.name, "file_path": str(path)},
+    )
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise SceneLoadError(f"Cannot read '{path.name}': {exc.strerror or exc}.") from exc
+
+
+def _decode(data: bytes) -> tuple[str, bool]:
+    """The text, and whether it was UTF-8 (else cp1252, or Latin-1 where cp1252 has holes)."""
+    try:
+        return data.decode("utf-8-sig"), True
+    except UnicodeDecodeError:
+        pass
+    try:
+        return data.decode("cp1252"), False
+    except UnicodeDecodeError:
+        return data.decode("latin-1"), False
+
+
+def _as_utf8(data: bytes) -> bytes:
+    text, utf8 = _decode(data)
+    return data if utf8 else text.encode("utf-8")
+
+
+# --------------------------------------------------------------------------------------------
+# OBJ
+# --------------------------------------------------------------------------------------------
+
+
+def _obj_bytes(path: Path, data: bytes, max_memory_mb: int, notes: list[str]) -> bytes:
+    need_mb = len(data) * _OBJ_MEMORY_PER_BYTE / 2**20
+    if need_mb > max_memory_mb:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': at {len(data) / 2**20:.0f} MB of text it would need "
+            f"about {need_mb:.0f} MB to read, over the {max_memory_mb} MB limit "
+            "(scene.max_memory_mb)."
+        )
+    text, utf8 = _decode(data)
+    if not utf8:
+        notes.append("the file is not UTF-8 text: read it as Windows-1252 (Latin-1)")
+    if b"\0" in data:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': it is not an OBJ file (it holds binary data, not text)."
+        )
+    short = [m for m in _SHORT_VERTEX.finditer(text)]
+    if short:
+        first = text.count("\n", 0, short[0].start()) + 1
+        notes.append(
+            f"{len(short)} vertex line{'s have' if len(short) != 1 else ' has'} fewer than 3 "
+            f"coordinates (first on line {first}): the triangles using "
+            f"{'them' if len(short) != 1 else 'it'} are dropped"
+        )
+        text = _SHORT_VERTEX.sub(r"\1v nan nan nan", text)
+    elif utf8:
+        return data
+    return text.encode("utf-8")
+
+
+def _resolver(source: str) -> Any:
+    """trimesh's file resolver for the files an OBJ names (MTL files, textures).
+
+    It stays inside the model's folder like trimesh's own, finds a name whose bytes on disk are
+    Latin-1 rather than UTF-8, and hands MTL files over as UTF-8.
+    """
+    from trimesh.resolvers import FilePathResolver
+
+    class Resolver(FilePathResolver):
+        def namespaced(self, namespace: str) -> Any:
+            return Resolver(os.path.join(self.parent, namespace, ""))
+
+        def get(self, name: str) -> bytes:
+            try:
+                data = super().get(name)
+            except FileNotFoundError:
+                legacy = _legacy_name(name)
+                if legacy is None:
+                    raise
+                data = super().get(legacy)
+            if name.strip().lower().endswith(".mtl"):
+                data = _as_utf8(bytes(data))
+            return bytes(data)
+
+    return Resolver(source)
+
+
+def _legacy_name(name: str) -> str | None:
+    """``name`` as the file system spells it when its bytes are cp1252/Latin-1, not UTF-8."""
+    for codec in ("cp1252", "latin-1"):
+        try:
+            legacy = os.fsdecode(name.encode(codec))
+        except UnicodeEncodeError:
+            continue
+        return None if legacy == name else legacy
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# PLY
+# --------------------------------------------------------------------------------------------
+
+
+def _checked_ply(path: Path, data: bytes, max_memory_mb: int) -> tuple[str, bytes]:
+    """The PLY's format and its bytes with a UTF-8 header, once its counts are plausible."""
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': it is not a PLY file "
+            "(the 'ply' header or its 'end_header' line is missing)."
+        )
+    nl = data.find(b"\n", end)
+    body_start = len(data) if nl < 0 else nl + 1
+    header_bytes = data[:body_start]
+    header, _ = _decode(header_bytes)
+    fmt = ""
+    elements: list[tuple[str, int, int, int]] = []  # name, count, min bytes, memory bytes
+    for line in header.splitlines():
+        parts = line.split()
+        if not parts:
+            continue
+        if parts[0] == "format" and len(parts) >= 2:
+            fmt = parts[1]
+        elif parts[0] == "element" and len(parts) >= 3:
+            try:
+                count = int(parts[2])
+            except ValueError:
+                raise SceneLoadError(
+                    f"Cannot read '{path.name}': its header has an element count that is "
+                    f"not a number ('{line.strip()[:60]}')."
+                ) from None
+            if count < 0:
+                raise SceneLoadError(
+                    f"Cannot read '{path.name}': its header declares {count} {parts[1]} "
+                    "elements (a negative count)."
+                )
+            elements.append((parts[1], count, 0, 0))
+        elif parts[0] == "property" and elements:
+            name, count, least, memory = elements[-1]
+            if len(parts) >= 5 and parts[1] == "list":
+                n = _PLY_SIZES.get(parts[2], 0)
+                item = _PLY_SIZES.get(parts[3], 0)
+                least, memory = least + n, memory + n + 3 * item
+            elif len(parts) >= 2:
+                size = _PLY_SIZES.get(parts[1], 0)
+                least, memory = least + size, memory + size
+            elements[-1] = (name, count, least, memory)
+    if fmt not in _PLY_FORMATS:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': its PLY format '{fmt or '(none)'}' is not one of "
+            f"{', '.join(_PLY_FORMATS)}."
+        )
+    declared = ", ".join(_counted(count, name) for name, count, *_ in elements)
+    body = len(data) - body_start
+    if fmt == "ascii":
+        lines = data.count(b"\n", body_start) + (0 if data.endswith(b"\n") else 1)
+        total = sum(count for _, count, _, _ in elements)
+        if total > lines:
+            raise SceneLoadError(
+                f"Cannot read '{path.name}': its header declares {declared}, but the file has "
+                f"only {lines} data line{'s' if lines != 1 else ''} (it is truncated or its "
+                "counts are wrong)."
+            )
+    else:
+        least = sum(count * size for _, count, size, _ in elements)
+        if least > body:
+            raise SceneLoadError(
+                f"Cannot read '{path.name}': its header declares {declared}, which needs at "
+                f"least {least} bytes of data, but the file holds only {body} (it is truncated "
+                "or its counts are wrong)."
+            )
+    need = sum(count * memory for _, count, _, memory in elements)
+    if need > max_memory_mb * 2**20:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': its header declares {declared}, which would need "
+            f"about {need / 2**20:.0f} MB, over the {max_memory_mb} MB limit "
+            "(scene.max_memory_mb)."
+        )
+    utf8_header = header.encode("utf-8")
+    if utf8_header != header_bytes:
+        data = utf8_header + data[body_start:]
+    return fmt, data
+
+
+def _counted(count: int, name: str) -> str:
+    if count == 1:
+        return f"1 {name}"
+    return f"{count} {'vertices' if name == 'vertex' else name + 's'}"
+
+
+def _try_other_byte_order(
+    trimesh: Any, path: Path, fmt: str, data: bytes, scene: Any, notes: list[str]
+) -> Any:
+    """The scene read in the other byte order, if that gives valid faces and ``scene`` not."""
+    other = "binary_big_endian" if fmt == "binary_little_endian" else "binary_little_endian"
+    swapped = data.replace(f"format {fmt}".encode(), f"format {other}".encode(), 1)
+    try:
+        alt = _parse(trimesh, io.BytesIO(swapped), "ply", path)
+    except Exception:  # noqa: BLE001 - the other order is only a guess
+        return scene
+    if _bad_face_count(alt) or not _has_faces(alt) or not _finite(alt):
+        return scene
+    notes.append(
+        f"the header says {fmt.replace('_', '-')} but the data is "
+        f"{other.replace('_', '-')}: read it in that byte order"
+    )
+    return alt
+
+
+def _geometries(scene: Any) -> list[Any]:
+    return [g for g in getattr(scene, "geometry", {}).values() if hasattr(g, "faces")]
+
+
+def _has_faces(scene: Any) -> bool:
+    return any(len(g.faces) for g in _geometries(scene))
+
+
+def _finite(scene: Any) -> bool:
+    return all(np.isfinite(np.asarray(g.vertices, np.float64)).all() for g in _geometries(scene))
+
+
+def _bad_faces(geom: Any) -> np.ndarray:
+    faces = np.asarray(geom.faces)
+    if faces.size == 0:
+        return np.zeros(len(faces), dtype=bool)
+    n = len(geom.vertices)
+    return np.asarray(((faces < 0) | (faces >= n)).any(axis=1))
+
+
+def _bad_face_count(scene: Any) -> int:
+    return int(sum(_bad_faces(g).sum() for g in _geometries(scene)))
+
+
+def _drop_bad_faces(scene: Any, notes: list[str]) -> None:
+    """Drop faces whose indices point outside their mesh's vertices (and say so)."""
+    dropped = 0
+    for geom in _geometries(scene):
+        bad = _bad_faces(geom)
+        if bad.any():
+            dropped += int(bad.sum())
+            geom.update_faces(~bad)
+    if dropped:
+        notes.append(
+            f"dropped {dropped} face{'s' if dropped != 1 else ''} whose vertex indices point "
+            "past the file's vertices"
+        )
