@@ -53,6 +53,7 @@ _PLY_SIZES = {
     "float64": 8,
 }
 _PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
+_BLANK_LINE = re.compile(rb"^[ \t\r]*\n", re.MULTILINE)
 # An OBJ vertex line with fewer than three fields after the 'v'.
 _SHORT_VERTEX = re.compile(r"^([ \t]*)v(?:[ \t]+[^ \t\r\n]+){0,2}[ \t\r]*$", re.MULTILINE)
 
@@ -81,7 +82,13 @@ def _load(path: Path, max_memory_mb: int, notes: list[str]) -> Any:
     try:
         if ext == ".obj":
             data = _obj_bytes(path, _read_bytes(path), max_memory_mb, notes)
-            scene = _parse(trimesh, io.BytesIO(data), "obj", path)
+            try:
+                scene = _parse(trimesh, io.BytesIO(data), "obj", path)
+            except IndexError:
+                # trimesh indexes its arrays with the face indices as written: drop the faces
+                # that point past the vertices (or texture coordinates, normals) and read again.
+                data = _obj_without_bad_faces(data.decode("utf-8"), notes).encode("utf-8")
+                scene = _parse(trimesh, io.BytesIO(data), "obj", path)
         elif ext == ".ply":
             raw = _read_bytes(path)
             fmt, data = _checked_ply(path, raw, max_memory_mb)
@@ -106,6 +113,8 @@ def _load(path: Path, max_memory_mb: int, notes: list[str]) -> Any:
         if isinstance(exc, (ImportError, UnicodeDecodeError)):
             # trimesh reaches for an optional text-encoding detector on undecodable bytes.
             detail = "its content is not readable text"
+        if ext == ".ply" and isinstance(exc, ValueError):
+            detail = f"its data does not match the properties its header declares: {detail}"
         if len(detail) > 200:
             detail = detail[:200] + "..."
         raise SceneLoadError(
@@ -163,6 +172,11 @@ def _obj_bytes(path: Path, data: bytes, max_memory_mb: int, notes: list[str]) ->
             f"about {need_mb:.0f} MB to read, over the {max_memory_mb} MB limit "
             "(scene.max_memory_mb)."
         )
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        try:
+            data = data.decode("utf-16").encode("utf-8")
+        except UnicodeDecodeError:
+            pass
     text, utf8 = _decode(data)
     if not utf8:
         notes.append("the file is not UTF-8 text: read it as Windows-1252 (Latin-1)")
@@ -170,6 +184,8 @@ def _obj_bytes(path: Path, data: bytes, max_memory_mb: int, notes: list[str]) ->
         raise SceneLoadError(
             f"Cannot read '{path.name}': it is not an OBJ file (it holds binary data, not text)."
         )
+    if "\r" in text and "\n" not in text:  # classic Mac OS line ends
+        text, utf8 = text.replace("\r", "\n"), False
     short = [m for m in _SHORT_VERTEX.finditer(text)]
     if short:
         first = text.count("\n", 0, short[0].start()) + 1
@@ -182,6 +198,62 @@ def _obj_bytes(path: Path, data: bytes, max_memory_mb: int, notes: list[str]) ->
     elif utf8:
         return data
     return text.encode("utf-8")
+
+
+def _obj_without_bad_faces(text: str, notes: list[str]) -> str:
+    """``text`` without the face lines whose indices point outside the file's lists.
+
+    A positive index counts from the start of the file, a negative one back from the line it is
+    on; an out-of-range texture-coordinate or normal index drops only that part of the face.
+    """
+    lines = text.split("\n")
+    totals = {"v": 0, "vt": 0, "vn": 0}
+    for line in lines:
+        head = line.split(None, 1)[:1]
+        if head and head[0] in totals:
+            totals[head[0]] += 1
+    seen = {"v": 0, "vt": 0, "vn": 0}
+    dropped = stripped = 0
+    out = []
+
+    def ok(token: str, kind: str) -> bool:
+        try:
+            i = int(token)
+        except ValueError:
+            return False
+        return 1 <= i <= totals[kind] if i > 0 else (i < 0 and -i <= seen[kind])
+
+    for line in lines:
+        parts = line.split()
+        if parts and parts[0] in seen:
+            seen[parts[0]] += 1
+        elif parts and parts[0] == "f":
+            refs = [p.split("/") for p in parts[1:]]
+            if not all(r[0] and ok(r[0], "v") for r in refs):
+                dropped += 1
+                continue
+            uv_ok = all(len(r) > 1 and r[1] and ok(r[1], "vt") for r in refs)
+            n_ok = all(len(r) > 2 and r[2] and ok(r[2], "vn") for r in refs)
+            if not (uv_ok and n_ok) and any(len(r) > 1 for r in refs):
+                stripped += 1
+                line = "f " + " ".join(
+                    "/".join(
+                        (r[0], r[1] if uv_ok else "", r[2] if n_ok and len(r) > 2 else "")
+                    ).rstrip("/")
+                    for r in refs
+                )
+        out.append(line)
+    if dropped:
+        notes.append(
+            f"dropped {dropped} face{'s' if dropped != 1 else ''} whose vertex indices point "
+            "past the file's vertices"
+        )
+    if stripped:
+        notes.append(
+            f"{stripped} face{'s' if stripped != 1 else ''} point past the file's texture "
+            "coordinates or normals: read without them"
+        )
+    return "\n".join(out)
 
 
 def _resolver(source: str) -> Any:
@@ -264,11 +336,22 @@ def _checked_ply(path: Path, data: bytes, max_memory_mb: int) -> tuple[str, byte
         elif parts[0] == "property" and elements:
             name, count, least, memory = elements[-1]
             if len(parts) >= 5 and parts[1] == "list":
+                for kind in parts[2:4]:
+                    if kind not in _PLY_SIZES:
+                        raise SceneLoadError(
+                            f"Cannot read '{path.name}': its header gives list property "
+                            f"'{parts[-1]}' the type '{kind}', which is not a PLY type."
+                        )
                 n = _PLY_SIZES.get(parts[2], 0)
                 item = _PLY_SIZES.get(parts[3], 0)
                 least, memory = least + n, memory + n + 3 * item
             elif len(parts) >= 2:
-                size = _PLY_SIZES.get(parts[1], 0)
+                if parts[1] not in _PLY_SIZES:
+                    raise SceneLoadError(
+                        f"Cannot read '{path.name}': its header gives property "
+                        f"'{parts[-1]}' the type '{parts[1]}', which is not a PLY type."
+                    )
+                size = _PLY_SIZES[parts[1]]
                 least, memory = least + size, memory + size
             elements[-1] = (name, count, least, memory)
     if fmt not in _PLY_FORMATS:
@@ -279,13 +362,13 @@ def _checked_ply(path: Path, data: bytes, max_memory_mb: int) -> tuple[str, byte
     declared = ", ".join(_counted(count, name) for name, count, *_ in elements)
     body = len(data) - body_start
     if fmt == "ascii":
-        lines = data.count(b"\n", body_start) + (0 if data.endswith(b"\n") else 1)
         total = sum(count for _, count, _, _ in elements)
-        if total > lines:
+        lines = _ply_data_lines(data, body_start)
+        if total != lines:
             raise SceneLoadError(
                 f"Cannot read '{path.name}': its header declares {declared}, but the file has "
-                f"only {lines} data line{'s' if lines != 1 else ''} (it is truncated or its "
-                "counts are wrong)."
+                f"{'only ' if lines < total else ''}{lines} data line{'s' if lines != 1 else ''} "
+                f"({'it is truncated or ' if lines < total else ''}its counts are wrong)."
             )
     else:
         least = sum(count * size for _, count, size, _ in elements)
@@ -306,6 +389,15 @@ def _checked_ply(path: Path, data: bytes, max_memory_mb: int) -> tuple[str, byte
     if utf8_header != header_bytes:
         data = utf8_header + data[body_start:]
     return fmt, data
+
+
+def _ply_data_lines(data: bytes, start: int) -> int:
+    """Non-blank lines after the header (an ASCII PLY has one element per line)."""
+    lines = data.count(b"\n", start)
+    tail = data[data.rfind(b"\n", start) + 1 :] if lines else data[start:]
+    if tail.strip():
+        lines += 1  # a last line without its line end
+    return lines - sum(1 for _ in _BLANK_LINE.finditer(data, start))
 
 
 def _counted(count: int, name: str) -> str:
