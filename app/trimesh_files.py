@@ -131,8 +131,21 @@ def _parse(trimesh: Any, data: io.BytesIO, file_type: str, path: Path) -> Any:
         file_type=file_type,
         resolver=_resolver(str(path)),
         process=False,
-        metadata={"file_name": path.name, "file_path": str(path)},
+        metadata={"file_name": _text(path.name), "file_path": _text(str(path))},
     )
+
+
+def _text(name: str) -> str:
+    """A file name that encodes as UTF-8: trimesh hashes the names it gives meshes.
+
+    A name whose bytes on disk are not UTF-8 reaches Python with surrogate escapes; those bytes
+    are read as cp1252/Latin-1 (Windows names in a zip) instead.
+    """
+    try:
+        name.encode("utf-8")
+        return name
+    except UnicodeEncodeError:
+        return _decode(os.fsencode(name))[0]
 
 
 def _read_bytes(path: Path) -> bytes:
@@ -280,7 +293,9 @@ def _resolver(source: str) -> Any:
                 data = _as_utf8(bytes(data))
             return bytes(data)
 
-    return Resolver(source)
+    resolver = Resolver(source)
+    resolver.file_name = _text(resolver.file_name)  # OBJ meshes are named after the file
+    return resolver
 
 
 def _legacy_name(name: str) -> str | None:

@@ -204,11 +204,12 @@ class _Writer:
         family: str = "gltf",
         base_tris: int | None = None,
         extra: dict[str, bytes | str] | None = None,
+        file_name: str | None = None,
     ) -> Path:
         name = f"{category}-{name}"
         folder = self.root / name
         folder.mkdir(parents=True, exist_ok=False)
-        path = folder / f"{name}{ext}"
+        path = folder / (file_name or f"{name}{ext}")
         _write(path, data)
         for rel, content in (extra or {}).items():
             target = folder / rel
@@ -895,6 +896,21 @@ def _generic(w: _Writer) -> None:
         w.add("generic", f"{tag}-zeros", ext, b"\0" * 4096, family)
         w.add("generic", f"{tag}-text", ext, "hello, this is not a model\n", family)
         w.add("generic", f"{tag}-png", ext, png_bytes(), family)
+    tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    box = glb_bytes(box_doc().json, bytes(box_doc().bin))
+    for label, file_name in (
+        ("latin1", os.fsdecode(b"caf\xe9 cr\xe8me")),
+        ("unicode-spaces", "Körper Ü 模型"),
+        ("leading-dash", "-x"),
+    ):
+        w.add(
+            "name", f"obj-{label}", ".obj", tri, "objply", file_name=file_name + ".obj", base_tris=1
+        )
+        ply = _ply_header("ascii", 3, 1) + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+        w.add(
+            "name", f"ply-{label}", ".ply", ply, "objply", file_name=file_name + ".ply", base_tris=1
+        )
+        w.add("name", f"glb-{label}", ".glb", box, file_name=file_name + ".glb", base_tris=BOX_TRIS)
     w.add("generic", "gltf-number-json", ".gltf", "42")
     w.add("generic", "gltf-empty-object", ".gltf", "{}")
     w.add("generic", "gltf-null", ".gltf", "null")
@@ -1152,9 +1168,15 @@ def _worker(list_file: str, out_dir: str) -> int:
     from app.lab import cli
     from app.loaders import load_scene
 
+    # Test hook for the runner itself: {"case name": "crash" | "hang"}.
+    faults = json.loads(os.environ.get("VRPREVIEW_CORPUS_FAULTS", "{}"))
     for item in json.loads(Path(list_file).read_text()):
         name, path = item["name"], item["path"]
         print(json.dumps({"start": name}), file=proto, flush=True)
+        if faults.get(name) == "crash":
+            os.abort()
+        if faults.get(name) == "hang":
+            time.sleep(3600)
         out = Path(out_dir) / f"{name}.png"
         err, std = io.StringIO(), io.StringIO()
         start = time.perf_counter()

@@ -17,6 +17,7 @@ import json
 import subprocess
 import sys
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +91,24 @@ def test_corpus_valid_files_load(outcomes: dict[str, tuple[str, str]]) -> None:
         assert outcomes[name][0] == "loaded", (name, outcomes[name])
 
 
+def test_runner_names_the_file_that_crashed_or_hung(
+    cases: dict[str, corpus.Case], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The harness itself: a crash or a hang is pinned on its file, and the rest still run."""
+    names = ["generic-obj-empty", "generic-ply-empty", "generic-gltf-null", "generic-glb-empty"]
+    faults = {names[1]: "crash", names[2]: "hang"}
+    monkeypatch.setenv("VRPREVIEW_CORPUS_FAULTS", json.dumps(faults))
+    picked = [cases[n] for n in names]
+    raw = corpus.run_corpus(picked, tmp_path, timeout_s=8.0)
+    got = {c.name: corpus.classify(c, raw[c.name])[0] for c in picked}
+    assert got == {
+        names[0]: "refused",
+        names[1]: "crash",
+        names[2]: "hang",
+        names[3]: "refused",
+    }
+
+
 # ------------------------------------------------------------------------------------------
 # a few through the real command line
 # ------------------------------------------------------------------------------------------
@@ -99,6 +118,7 @@ END_TO_END = {
     "generic-glb-garbage": "refused",
     "glb-truncated-at01030": "refused",
     "obj-vertex-one-number": "loaded",
+    "name-obj-latin1": "loaded",  # a file name whose bytes are Latin-1, through argv
     "ply-binary-2e31-vertices": "refused",
 }
 
@@ -196,6 +216,8 @@ def test_obj_uv_index_past_the_end_keeps_the_face(cases: dict[str, corpus.Case])
         "obj-cp1252-quotes",
         "ply-latin1-comment-ascii",
         "ply-latin1-comment-binary",
+        "name-obj-latin1",
+        "name-ply-latin1",
     ],
 )
 def test_latin1_text_loads(name: str, cases: dict[str, corpus.Case]) -> None:
@@ -260,9 +282,15 @@ def test_ply_faces_past_the_vertices_are_dropped(name: str, cases: dict[str, cor
 def test_ply_with_impossible_counts_is_refused_before_reading(
     name: str, words: tuple[str, ...], cases: dict[str, corpus.Case]
 ) -> None:
+    tracemalloc.start()
     start = time.perf_counter()
-    _refused(cases[name].path, *words)
+    try:
+        _refused(cases[name].path, *words)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
     assert time.perf_counter() - start < 5.0
+    assert peak < 64 * 2**20, f"{peak / 2**20:.0f} MB allocated"
 
 
 def test_ply_over_the_memory_limit_is_refused(tmp_path: Path) -> None:
