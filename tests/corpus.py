@@ -1127,6 +1127,17 @@ def _ply(w: _Writer) -> None:
         "list-count-huge",
         _ply_header(le, 4, 1) + _ply_binary("<", verts, []) + bytes([255]) + b"\0" * 12,
     )
+    uint_list = _ply_header(le, 3, 2).replace(b"list uchar int", b"list uint int")
+    tri3 = b"".join(struct.pack("<3f", *v) for v in verts[:3])
+    three = struct.pack("<I3i", 3, 0, 1, 2)
+    ply(
+        "list-count-uint-max-second",
+        uint_list + tri3 + three + struct.pack("<I", 2**32 - 1) + b"\0" * 16,
+    )
+    ply(
+        "list-count-int-max-first",
+        uint_list + tri3 + struct.pack("<I", 2**31 - 1) + b"\0" * 12 + three,
+    )
     ply("points-only", _ply_header("ascii", 4, None) + ascii_body.split(b"3 0")[0])
     ply("header-only", _ply_header("ascii", 0, 0))
     ply(
