@@ -36,13 +36,18 @@ MAX_PLAUSIBLE_MODEL_M = 2000.0
 _TRY_UNITS_BEYOND_M = 50.0
 _UNITS = ((0.01, "centimetres"), (0.0254, "inches"), (0.001, "millimetres"), (0.3048, "feet"))
 _ROOM_HEAD_ROOM_M = (2.0, 8.0)  # the head room a room in the right units has
+_UNPLACEABLE = 1e15  # file units: larger coordinates are broken vertices, not a far model
 
 
 def place(scene: Scene, unit_scale: float | None) -> Scene:
     """``scene`` scaled to metres (``None``: the file's units are metres) and re-centred if far."""
     scale = 1.0 if unit_scale is None else float(unit_scale)
+    # Vertices beyond float32's reach (a stray 1e300) cannot be kept anyway: Scene.sanitized
+    # drops their triangles, so they must not drag the centre away from everything else.
     finite = [
-        np.asarray(m.positions, np.float64)[np.isfinite(m.positions).all(axis=1)]
+        np.asarray(m.positions, np.float64)[
+            (np.isfinite(m.positions) & (np.abs(m.positions) < _UNPLACEABLE)).all(axis=1)
+        ]
         for m in scene.meshes
     ]
     finite = [f for f in finite if len(f)]
