@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from app.errors import SceneLoadError
+from app.gltf_accessors import as_dict, as_list, is_int
 from app.scene import PointLight
 from app.scene_builder import float_list, float_or
 
@@ -127,7 +128,7 @@ def _parse_json(path: Path, text: bytes) -> dict[str, Any]:
 
 
 def _check_asset(path: Path, doc: dict[str, Any]) -> None:
-    asset = doc.get("asset") if isinstance(doc.get("asset"), dict) else {}
+    asset = as_dict(doc.get("asset"))
     version = str(asset.get("version", "2.0"))
     if not re.fullmatch(r"2(\.\d+)?", version.strip()):
         raise SceneLoadError(
@@ -240,7 +241,7 @@ def _gltf_world_matrices(doc: dict[str, Any]) -> dict[int, np.ndarray]:
 
 def gltf_root_nodes(doc: dict[str, Any]) -> list[int]:
     """The default scene's root nodes; every parentless node when the scene is missing or bad."""
-    nodes = doc.get("nodes") if isinstance(doc.get("nodes"), list) else []
+    nodes = as_list(doc.get("nodes"))
     scenes = doc.get("scenes")
     index = doc.get("scene", 0)
     if isinstance(scenes, list) and isinstance(index, int) and 0 <= index < len(scenes):
@@ -249,7 +250,7 @@ def gltf_root_nodes(doc: dict[str, Any]) -> list[int]:
         if isinstance(roots, list):
             return [r for r in roots if isinstance(r, int) and 0 <= r < len(nodes)]
     children = {
-        c for n in nodes if isinstance(n, dict) for c in (n.get("children") or []) if _is_int(c)
+        c for n in nodes if isinstance(n, dict) for c in (n.get("children") or []) if is_int(c)
     }
     return [i for i in range(len(nodes)) if i not in children]
 
@@ -260,7 +261,7 @@ def gltf_node_walk(doc: dict[str, Any], warnings: list[str]) -> list[tuple[int, 
     Iterative, so a 10,000-deep hierarchy is no problem; a node reached a second time (a cycle,
     or a child with two parents, both invalid glTF) is skipped with one warning.
     """
-    nodes = doc.get("nodes") if isinstance(doc.get("nodes"), list) else []
+    nodes = as_list(doc.get("nodes"))
     seen: set[int] = set()
     cut = 0
     out: list[tuple[int, np.ndarray]] = []
@@ -271,12 +272,12 @@ def gltf_node_walk(doc: dict[str, Any], warnings: list[str]) -> list[tuple[int, 
             cut += 1
             continue
         seen.add(i)
-        node = nodes[i] if isinstance(nodes[i], dict) else {}
+        node = as_dict(nodes[i])
         m = parent @ _gltf_local_matrix(node)
         out.append((i, m))
         children = node.get("children") or []
         for c in reversed(children if isinstance(children, list) else []):
-            if _is_int(c) and 0 <= c < len(nodes):
+            if is_int(c) and 0 <= c < len(nodes):
                 stack.append((c, m))
     if cut:
         warnings.append(
@@ -284,10 +285,6 @@ def gltf_node_walk(doc: dict[str, Any], warnings: list[str]) -> list[tuple[int, 
             "giving a node a second parent ignored"
         )
     return out
-
-
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _gltf_local_matrix(node: dict[str, Any]) -> np.ndarray:

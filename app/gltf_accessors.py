@@ -18,7 +18,7 @@ import base64
 import binascii
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 from urllib.parse import unquote, unquote_to_bytes
 
 import numpy as np
@@ -44,13 +44,19 @@ class BufferUnavailable(Exception):
     """A buffer's data could not be had (missing file, refused URI); the message says which."""
 
 
-def _is_int(value: Any) -> bool:
+def is_int(value: Any) -> TypeGuard[int]:
+    """A JSON integer (not a bool, which Python counts as one)."""
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _get_list(doc: dict[str, Any], key: str) -> list[Any]:
-    value = doc.get(key)
+def as_list(value: Any) -> list[Any]:
+    """``value`` when it is a JSON array, else empty: the JSON's shapes are not trusted."""
     return value if isinstance(value, list) else []
+
+
+def as_dict(value: Any) -> dict[str, Any]:
+    """``value`` when it is a JSON object, else empty."""
+    return value if isinstance(value, dict) else {}
 
 
 class UriResolver:
@@ -107,9 +113,7 @@ class UriResolver:
 class Buffers:
     """Buffer bytes by index, loaded on first use (a refused or missing one once warned)."""
 
-    def __init__(
-        self, doc: dict[str, Any], glb_bin: bytes | None, resolver: UriResolver
-    ) -> None:
+    def __init__(self, doc: dict[str, Any], glb_bin: bytes | None, resolver: UriResolver) -> None:
         self.doc = doc
         self.glb_bin = glb_bin
         self.resolver = resolver
@@ -117,9 +121,11 @@ class Buffers:
         self._reasons: dict[int, str] = {}
 
     def get(self, index: Any) -> bytes:
-        buffers = _get_list(self.doc, "buffers")
-        if not _is_int(index) or not 0 <= index < len(buffers) or not isinstance(
-            buffers[index], dict
+        buffers = as_list(self.doc.get("buffers"))
+        if (
+            not is_int(index)
+            or not 0 <= index < len(buffers)
+            or not isinstance(buffers[index], dict)
         ):
             raise GltfDataError(f"a buffer view refers to buffer {index}, which does not exist")
         if index not in self._cache:
@@ -151,24 +157,24 @@ class Accessors:
     def __init__(self, doc: dict[str, Any], buffers: Buffers) -> None:
         self.doc = doc
         self.buffers = buffers
-        self.accessors = _get_list(doc, "accessors")
-        self.views = _get_list(doc, "bufferViews")
+        self.accessors = as_list(doc.get("accessors"))
+        self.views = as_list(doc.get("bufferViews"))
 
     # ---- what an accessor claims, checked ---------------------------------------------
 
     def spec(self, index: Any) -> dict[str, Any]:
-        if not _is_int(index) or not 0 <= index < len(self.accessors):
+        if not is_int(index) or not 0 <= index < len(self.accessors):
             raise GltfDataError(f"accessor {index} does not exist")
         acc = self.accessors[index]
         if not isinstance(acc, dict):
             raise GltfDataError(f"accessor {index} is not an object")
         return acc
 
-    def layout(self, index: int) -> tuple[int, np.dtype[Any], int]:
+    def layout(self, index: Any) -> tuple[int, np.dtype[Any], int]:
         """(count, component dtype, components per element) of a valid accessor."""
         acc = self.spec(index)
         count = acc.get("count")
-        if not _is_int(count) or count < 0 or count > MAX_COUNT:
+        if not is_int(count) or count < 0 or count > MAX_COUNT:
             raise GltfDataError(f"accessor {index} has an impossible count ({count!r})")
         dtype = COMPONENT_DTYPES.get(acc.get("componentType"))  # type: ignore[arg-type]
         if dtype is None:
@@ -180,15 +186,15 @@ class Accessors:
             raise GltfDataError(f"accessor {index} has an unknown type ({acc.get('type')!r})")
         return count, dtype, ncomp
 
-    def count(self, index: int) -> int:
+    def count(self, index: Any) -> int:
         return self.layout(index)[0]
 
-    def element_type(self, index: int) -> str:
+    def element_type(self, index: Any) -> str:
         return str(self.spec(index).get("type"))
 
     # ---- reading -------------------------------------------------------------------------
 
-    def read(self, index: int) -> np.ndarray:
+    def read(self, index: Any) -> np.ndarray:
         """(count, components) in the accessor's own component type (sparse applied)."""
         count, dtype, ncomp = self.layout(index)
         acc = self.spec(index)
@@ -204,7 +210,7 @@ class Accessors:
             self._apply_sparse(index, data, sparse, dtype, ncomp)
         return data
 
-    def read_float(self, index: int) -> np.ndarray:
+    def read_float(self, index: Any) -> np.ndarray:
         """(count, components) float64, normalized integers mapped to [0, 1] or [-1, 1]."""
         raw = self.read(index)
         return to_float(raw, bool(self.spec(index).get("normalized", False)))
@@ -214,13 +220,13 @@ class Accessors:
     ) -> np.ndarray:
         """A read-only view of ``count`` elements, after checking they lie inside the view."""
         view, data, view_start, view_len = self._view(what, view_index)
-        if not _is_int(offset) or offset < 0:
+        if not is_int(offset) or offset < 0:
             raise GltfDataError(f"{what} has an invalid byteOffset ({offset!r})")
         elem = dtype.itemsize * ncomp
         stride = view.get("byteStride")
         if stride is None:
             stride = elem
-        elif not _is_int(stride) or stride < elem or stride > 252 or stride % dtype.itemsize:
+        elif not is_int(stride) or stride < elem or stride > 252 or stride % dtype.itemsize:
             # glTF asks for multiples of 4; only misalignment to the component size is refused.
             raise GltfDataError(
                 f"{what} uses buffer view {view_index} with byteStride {stride!r}, which does "
@@ -242,14 +248,14 @@ class Accessors:
         )
 
     def _view(self, what: str, view_index: Any) -> tuple[dict[str, Any], bytes, int, int]:
-        if not _is_int(view_index) or not 0 <= view_index < len(self.views):
+        if not is_int(view_index) or not 0 <= view_index < len(self.views):
             raise GltfDataError(f"{what} refers to buffer view {view_index}, which does not exist")
         view = self.views[view_index]
         if not isinstance(view, dict):
             raise GltfDataError(f"buffer view {view_index} is not an object")
         start = view.get("byteOffset", 0)
         length = view.get("byteLength")
-        if not _is_int(start) or start < 0 or not _is_int(length) or length < 0:
+        if not is_int(start) or start < 0 or not is_int(length) or length < 0:
             raise GltfDataError(f"buffer view {view_index} has an invalid byteOffset or byteLength")
         data = self.buffers.get(view.get("buffer"))
         if start + length > len(data):
@@ -273,7 +279,7 @@ class Accessors:
         n = sparse.get("count")
         idx_spec = sparse.get("indices")
         val_spec = sparse.get("values")
-        if not _is_int(n) or n < 0 or n > len(data):
+        if not is_int(n) or n < 0 or n > len(data):
             raise GltfDataError(f"{what} has an impossible count ({n!r})")
         if not isinstance(idx_spec, dict) or not isinstance(val_spec, dict):
             raise GltfDataError(f"{what} lacks its indices or values")

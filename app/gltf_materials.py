@@ -15,7 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from app.gltf_accessors import Accessors, BufferUnavailable, GltfDataError, UriResolver
+from app.gltf_accessors import (
+    Accessors,
+    BufferUnavailable,
+    GltfDataError,
+    UriResolver,
+    as_dict,
+    as_list,
+    is_int,
+)
 from app.images import ImageError, decode_image, fitted_size, image_size, rgba_channel_means
 from app.progress import Progress
 from app.scene import Material, Texture
@@ -24,22 +32,13 @@ from app.scene_builder import float_list, float_or
 _GL_CLAMP_TO_EDGE = 33071
 
 
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _get_list(doc: dict[str, Any], key: str) -> list[Any]:
-    value = doc.get(key)
-    return value if isinstance(value, list) else []
-
-
 class GltfImages:
     """Image bytes by glTF image index (from a file, a data: URI or a buffer view), read once."""
 
     def __init__(
         self, doc: dict[str, Any], accessors: Accessors, resolver: UriResolver, max_px: int
     ) -> None:
-        self.images = _get_list(doc, "images")
+        self.images = as_list(doc.get("images"))
         self.accessors = accessors
         self.resolver = resolver
         self.max_px = max_px
@@ -48,8 +47,7 @@ class GltfImages:
 
     def label(self, index: int) -> str:
         """The image's file name, or its name, to name textures and missing files after."""
-        spec = self.images[index] if 0 <= index < len(self.images) else {}
-        spec = spec if isinstance(spec, dict) else {}
+        spec = as_dict(self.images[index]) if 0 <= index < len(self.images) else {}
         uri = spec.get("uri")
         if isinstance(uri, str) and not uri.startswith("data:"):
             from urllib.parse import unquote
@@ -150,9 +148,9 @@ class GltfMaterials:
         return self._by_gltf[gltf_index]
 
     def _spec(self, index: Any) -> dict[str, Any] | None:
-        mats = _get_list(self.doc, "materials")
-        if _is_int(index) and 0 <= index < len(mats) and isinstance(mats[index], dict):
-            return mats[index]  # type: ignore[no-any-return]
+        mats = as_list(self.doc.get("materials"))
+        if is_int(index) and 0 <= index < len(mats) and isinstance(mats[index], dict):
+            return as_dict(mats[index])
         return None
 
     # ---- one material ---------------------------------------------------------------------
@@ -160,9 +158,8 @@ class GltfMaterials:
     def _convert(self, index: int) -> Material:
         doc = self._spec(index) or {}
         name = str(doc.get("name") or f"material {len(self.materials)}")
-        exts = doc.get("extensions") if isinstance(doc.get("extensions"), dict) else {}
-        pbr = doc.get("pbrMetallicRoughness")
-        pbr = pbr if isinstance(pbr, dict) else {}
+        exts = as_dict(doc.get("extensions"))
+        pbr = as_dict(doc.get("pbrMetallicRoughness"))
         base = float_list(pbr.get("baseColorFactor"), 4, 1.0)
         metallic = float_or(pbr.get("metallicFactor"), 1.0)
         roughness = float_or(pbr.get("roughnessFactor"), 1.0)
@@ -224,9 +221,9 @@ class GltfMaterials:
             rgba = rgba.copy()
             rgba[:, :, 3] = 255
         # Two images with the same pixels (an exporter writing a file twice) are one texture.
-        digest = hashlib.blake2b(rgba.tobytes(), digest_size=16).digest() + repr(
-            rgba.shape
-        ).encode()
+        digest = (
+            hashlib.blake2b(rgba.tobytes(), digest_size=16).digest() + repr(rgba.shape).encode()
+        )
         index = self._texture_digests.get((digest, repeat))
         if index is None:
             index = len(self.textures)
@@ -264,20 +261,20 @@ class GltfMaterials:
         return rgba
 
     def _image_of(self, info: dict[str, Any]) -> int | None:
-        textures = _get_list(self.doc, "textures")
+        textures = as_list(self.doc.get("textures"))
         index = info.get("index")
-        if not _is_int(index) or not 0 <= index < len(textures):
+        if not is_int(index) or not 0 <= index < len(textures):
             return None
         tex = textures[index]
         if not isinstance(tex, dict):
             return None
         source = tex.get("source")
-        exts = tex.get("extensions") if isinstance(tex.get("extensions"), dict) else {}
+        exts = as_dict(tex.get("extensions"))
         for ext in exts.values():  # EXT_texture_webp, MSFT_texture_dds... name their own image
-            if source is None and isinstance(ext, dict) and _is_int(ext.get("source")):
+            if source is None and isinstance(ext, dict) and is_int(ext.get("source")):
                 source = ext["source"]
         n_images = len(self.images.images)
-        return source if _is_int(source) and 0 <= source < n_images else None
+        return source if is_int(source) and 0 <= source < n_images else None
 
     def _repeats(self, info: dict[str, Any]) -> bool:
         """False only when the sampler explicitly clamps; mirrored repeat is treated as repeat."""
@@ -294,9 +291,8 @@ class GltfMaterials:
 def _texture_infos(spec: dict[str, Any] | None) -> list[dict[str, Any]]:
     if spec is None:
         return []
-    pbr = spec.get("pbrMetallicRoughness")
-    pbr = pbr if isinstance(pbr, dict) else {}
-    exts = spec.get("extensions") if isinstance(spec.get("extensions"), dict) else {}
+    pbr = as_dict(spec.get("pbrMetallicRoughness"))
+    exts = as_dict(spec.get("extensions"))
     sg = exts.get("KHR_materials_pbrSpecularGlossiness")
     candidates = [pbr.get("baseColorTexture"), pbr.get("metallicRoughnessTexture")]
     if isinstance(sg, dict):

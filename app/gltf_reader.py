@@ -27,6 +27,9 @@ from app.gltf_accessors import (
     BufferUnavailable,
     GltfDataError,
     UriResolver,
+    as_dict,
+    as_list,
+    is_int,
     to_float,
 )
 from app.gltf_materials import GltfImages, GltfMaterials
@@ -100,14 +103,14 @@ class _Reader:
 
     def instances(self) -> list[tuple[int, dict[str, Any], np.ndarray]]:
         """(mesh index, mesh, world matrix) per node that shows a mesh, in node order."""
-        meshes = self.doc.get("meshes") if isinstance(self.doc.get("meshes"), list) else []
-        nodes = self.doc.get("nodes") if isinstance(self.doc.get("nodes"), list) else []
+        meshes = as_list(self.doc.get("meshes"))
+        nodes = as_list(self.doc.get("nodes"))
         out = []
         for node, matrix in gltf_node_walk(self.doc, self.warnings):
-            ref = nodes[node].get("mesh") if isinstance(nodes[node], dict) else None
+            ref = as_dict(nodes[node]).get("mesh")
             if ref is None:
                 continue
-            if not _is_int(ref) or not 0 <= ref < len(meshes) or not isinstance(meshes[ref], dict):
+            if not is_int(ref) or not 0 <= ref < len(meshes) or not isinstance(meshes[ref], dict):
                 self.warnings.append(f"node {node}: refers to mesh {ref}, which does not exist")
                 continue
             out.append((ref, meshes[ref], matrix))
@@ -127,7 +130,7 @@ class _Reader:
         for _, mesh, _ in instances:
             for prim in _primitives(mesh):
                 primitives += 1
-                attrs = prim.get("attributes") if isinstance(prim.get("attributes"), dict) else {}
+                attrs = as_dict(prim.get("attributes"))
                 try:
                     vertices = self.accessors.count(attrs.get("POSITION"))
                 except GltfDataError:
@@ -139,7 +142,7 @@ class _Reader:
                     except GltfDataError:
                         pass
                 total += vertices * _BYTES_PER_VERTEX + indices * _BYTES_PER_INDEX
-                if _is_int(prim.get("material")):
+                if is_int(prim.get("material")):
                     materials.add(prim["material"])
         images = self.materials.used_images(materials)
         total += sum(self.images.decoded_bytes(i) for i in images)
@@ -202,7 +205,7 @@ class _Reader:
         mode = prim.get("mode", _TRIANGLES)
         if mode not in (_TRIANGLES, _STRIP, _FAN):
             raise _Dropped(f"unknown primitive mode {mode!r}")
-        draco = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+        draco = as_dict(prim.get("extensions")).get("KHR_draco_mesh_compression")
         if isinstance(draco, dict):
             pos, normals, uvs, colors, flat = self._draco(name, attrs, draco)
         else:
@@ -281,11 +284,11 @@ class _Reader:
             decoded = DracoPy.decode(payload)
         except Exception as exc:  # noqa: BLE001 - a damaged payload raises anything
             raise _Dropped(f"its Draco data could not be decoded ({exc})") from exc
-        ids = ext.get("attributes") if isinstance(ext.get("attributes"), dict) else {}
+        ids = as_dict(ext.get("attributes"))
 
         def attribute(key: str) -> np.ndarray | None:
             uid = ids.get(key)
-            if not _is_int(uid):
+            if not is_int(uid):
                 return None
             found = decoded.get_attribute_by_unique_id(uid)
             if not found:
@@ -379,10 +382,6 @@ def _triangles(flat: np.ndarray, mode: int) -> np.ndarray:
 def _primitives(mesh: dict[str, Any]) -> list[dict[str, Any]]:
     prims = mesh.get("primitives")
     return [p for p in prims if isinstance(p, dict)] if isinstance(prims, list) else []
-
-
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _size(n_bytes: int) -> str:

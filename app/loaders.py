@@ -6,14 +6,15 @@ PLY. Either way node transforms are baked so every mesh is in world space (Y up,
 materials become linear colours plus de-duplicated RGBA8 textures, and the viewer is placed where
 a person would stand. :mod:`app.scene_builder` turns trimesh's scene into ours, :mod:`app.spawn`
 finds where to stand (on the main floor at eye height, facing down the longest free direction;
-outside a lone object) and :mod:`app.default_lights` lights a file without lights so the first frame is never black.
+outside a lone object) and :mod:`app.default_lights` lights a file without lights so the first
+frame is never black.
 
 Texture-coordinate contract (the renderer relies on it): ``Texture.rgba`` row 0 is the top row of
 the image, and a mesh's ``uv`` follows OpenGL's bottom-left origin, i.e. ``v = 1`` is the top image
 row and ``v = 1 - row / height``. The glTF reader flips glTF's top-left ``v`` into this convention
 (``v = 1 - v_gltf``) and OBJ ``vt`` is authored in it, so OBJ uvs pass through unchanged
-(values outside [0, 1] included: they mean repeat wrapping). A renderer that uploads row 0 first must therefore sample at
-``(u, 1 - v)`` or upload the rows bottom-up.
+(values outside [0, 1] included: they mean repeat wrapping). A renderer that uploads row 0 first
+must therefore sample at ``(u, 1 - v)`` or upload the rows bottom-up.
 
 Loading is staged (read, place, repair, find where to stand, light) and reports progress through
 :class:`~app.progress.Progress`, whose cancel flag stops it between steps. :func:`load_scene` is the
