@@ -72,7 +72,7 @@ class UriResolver:
         """The bytes ``uri`` names, or None (with a warning naming ``what`` and the URI)."""
         if uri.startswith("data:"):
             return self._data_uri(uri, what)
-        shown = uri if len(uri) <= 80 else uri[:77] + "..."
+        shown = uri if len(uri) <= 240 else uri[:237] + "..."
         decoded = unquote(uri)
         if (
             self._SCHEME.match(decoded)
