@@ -1,7 +1,9 @@
-"""glTF 2.0 files: the JSON document, and what trimesh drops from it (lights, scene options).
+"""glTF 2.0 files: the JSON document and GLB chunks, the node graph, lights and scene options.
 
-:mod:`app.loaders` calls :func:`read_gltf_json` first so a truncated or non-glTF file gets a
-message naming the problem, then reads the geometry.
+:func:`read_gltf_file` refuses what makes a whole file unreadable (a damaged GLB, JSON nested too
+deeply, a newer glTF, a required extension we cannot read) with a message naming the problem;
+:mod:`app.gltf_reader` builds the geometry from what it returns. The node walk is iterative and
+cuts cycles, so the lights here and the meshes there see the same world matrices.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from app.errors import SceneLoadError
-from app.gltf_accessors import as_dict, as_list, is_int
+from app.gltf_accessors import Blob, as_dict, as_list, is_int
 from app.scene import PointLight
 from app.scene_builder import float_list, float_or
 
@@ -44,7 +46,7 @@ def read_gltf_json(path: Path) -> dict[str, Any]:
     return read_gltf_file(path)[0]
 
 
-def read_gltf_file(path: Path) -> tuple[dict[str, Any], bytes | None]:
+def read_gltf_file(path: Path) -> tuple[dict[str, Any], Blob | None]:
     """The glTF JSON document and, for a GLB, its BIN chunk (buffer 0 when it has no uri).
 
     Everything that makes the whole file unreadable is refused here with a message naming the
@@ -55,7 +57,7 @@ def read_gltf_file(path: Path) -> tuple[dict[str, Any], bytes | None]:
         data = path.read_bytes()
     except OSError as exc:
         raise SceneLoadError(f"Cannot read '{path.name}': {exc.strerror or exc}.") from exc
-    binary: bytes | None = None
+    binary: Blob | None = None
     if path.suffix.lower() == ".glb":
         text, binary = _glb_chunks(path, data)
     else:
@@ -66,7 +68,7 @@ def read_gltf_file(path: Path) -> tuple[dict[str, Any], bytes | None]:
     return doc, binary
 
 
-def _glb_chunks(path: Path, data: bytes) -> tuple[bytes, bytes | None]:
+def _glb_chunks(path: Path, data: bytes) -> tuple[bytes, Blob | None]:
     """The JSON chunk and the first BIN chunk, every length checked against the file."""
     if len(data) < 20 or data[:4] != _GLB_MAGIC:
         raise SceneLoadError(
@@ -90,7 +92,7 @@ def _glb_chunks(path: Path, data: bytes) -> tuple[bytes, bytes | None]:
     text = data[20 : 20 + chunk_len]
     pos = 20 + chunk_len
     pos += (-pos) % 4  # chunks start 4-byte aligned (writers pad, a few forget)
-    binary: bytes | None = None
+    binary: Blob | None = None
     while pos + 8 <= end:
         length, kind = struct.unpack_from("<II", data, pos)
         if pos + 8 + length > len(data):
@@ -99,7 +101,7 @@ def _glb_chunks(path: Path, data: bytes) -> tuple[bytes, bytes | None]:
                 f"(a chunk claims {length} bytes, the file ends {len(data) - pos - 8} bytes later)."
             )
         if kind == _GLB_BIN_CHUNK and binary is None:
-            binary = data[pos + 8 : pos + 8 + length]
+            binary = memoryview(data)[pos + 8 : pos + 8 + length]  # no copy of a large BIN
         pos += 8 + length
         pos += (-pos) % 4
     return text, binary

@@ -35,6 +35,9 @@ TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT
 # Far beyond any real model (2^31 elements of an accessor); larger claims are damage or attack.
 MAX_COUNT = 2**31 - 1
 
+# Buffer data: bytes read from a file or URI, or a view into the GLB file (never copied).
+Blob = bytes | memoryview
+
 
 class GltfDataError(Exception):
     """The file's binary layout is broken; the message completes "Cannot read 'x': ..."."""
@@ -113,14 +116,14 @@ class UriResolver:
 class Buffers:
     """Buffer bytes by index, loaded on first use (a refused or missing one once warned)."""
 
-    def __init__(self, doc: dict[str, Any], glb_bin: bytes | None, resolver: UriResolver) -> None:
+    def __init__(self, doc: dict[str, Any], glb_bin: Blob | None, resolver: UriResolver) -> None:
         self.doc = doc
         self.glb_bin = glb_bin
         self.resolver = resolver
-        self._cache: dict[int, bytes | None] = {}
+        self._cache: dict[int, Blob | None] = {}
         self._reasons: dict[int, str] = {}
 
-    def get(self, index: Any) -> bytes:
+    def get(self, index: Any) -> Blob:
         buffers = as_list(self.doc.get("buffers"))
         if (
             not is_int(index)
@@ -135,7 +138,7 @@ class Buffers:
             raise BufferUnavailable(self._reasons[index])
         return data
 
-    def _load(self, index: int, spec: dict[str, Any]) -> bytes | None:
+    def _load(self, index: int, spec: dict[str, Any]) -> Blob | None:
         uri = spec.get("uri")
         if uri is None:
             if index == 0 and self.glb_bin is not None:
@@ -247,7 +250,7 @@ class Accessors:
             strides=(stride, dtype.itemsize),
         )
 
-    def _view(self, what: str, view_index: Any) -> tuple[dict[str, Any], bytes, int, int]:
+    def _view(self, what: str, view_index: Any) -> tuple[dict[str, Any], Blob, int, int]:
         if not is_int(view_index) or not 0 <= view_index < len(self.views):
             raise GltfDataError(f"{what} refers to buffer view {view_index}, which does not exist")
         view = self.views[view_index]
@@ -265,7 +268,7 @@ class Accessors:
             )
         return view, data, start, length
 
-    def view_bytes(self, view_index: Any, what: str) -> bytes:
+    def view_bytes(self, view_index: Any, what: str) -> Blob:
         """The raw bytes of a buffer view (Draco payloads, embedded images)."""
         _, data, start, length = self._view(what, view_index)
         return data[start : start + length]

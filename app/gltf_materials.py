@@ -17,6 +17,7 @@ import numpy as np
 
 from app.gltf_accessors import (
     Accessors,
+    Blob,
     BufferUnavailable,
     GltfDataError,
     UriResolver,
@@ -42,7 +43,7 @@ class GltfImages:
         self.accessors = accessors
         self.resolver = resolver
         self.max_px = max_px
-        self._bytes: dict[int, bytes | None] = {}
+        self._bytes: dict[int, Blob | None] = {}
         self._failures: dict[int, str] = {}
 
     def label(self, index: int) -> str:
@@ -56,12 +57,12 @@ class GltfImages:
         name = spec.get("name")
         return str(name) if name else f"image {index}"
 
-    def data(self, index: int) -> bytes | None:
+    def data(self, index: int) -> Blob | None:
         """The encoded image, or None (the reason is kept for :meth:`failure`)."""
         if index in self._bytes:
             return self._bytes[index]
         spec = self.images[index] if 0 <= index < len(self.images) else None
-        result: bytes | None = None
+        result: Blob | None = None
         if not isinstance(spec, dict):
             self._failures[index] = f"image {index} does not exist"
         elif isinstance(spec.get("uri"), str):

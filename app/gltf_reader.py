@@ -23,6 +23,7 @@ from app.errors import SceneLoadError
 from app.gltf import gltf_lights, gltf_node_walk, gltf_wants_indirect, read_gltf_file
 from app.gltf_accessors import (
     Accessors,
+    Blob,
     Buffers,
     BufferUnavailable,
     GltfDataError,
@@ -76,7 +77,7 @@ class _Reader:
         self,
         path: Path,
         doc: dict[str, Any],
-        glb_bin: bytes | None,
+        glb_bin: Blob | None,
         max_texture_px: int,
         warnings: list[str],
         progress: Progress,
@@ -281,7 +282,7 @@ class _Reader:
         try:
             import DracoPy
 
-            decoded = DracoPy.decode(payload)
+            decoded = DracoPy.decode(bytes(payload))
         except Exception as exc:  # noqa: BLE001 - a damaged payload raises anything
             raise _Dropped(f"its Draco data could not be decoded ({exc})") from exc
         ids = as_dict(ext.get("attributes"))

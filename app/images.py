@@ -35,7 +35,7 @@ class ImageError(Exception):
     """An image that cannot become a texture; the message says why, for a warning."""
 
 
-def image_size(data: bytes) -> tuple[int, int] | None:
+def image_size(data: bytes | memoryview) -> tuple[int, int] | None:
     """Width and height from the image header, or None when it is not a readable image."""
     try:
         with pywarnings.catch_warnings():
@@ -56,7 +56,7 @@ def fitted_size(size: tuple[int, int], max_px: int) -> tuple[int, int]:
     return max(1, round(w * scale)), max(1, round(h * scale))
 
 
-def decode_image(data: bytes, max_px: int) -> DecodedImage:
+def decode_image(data: bytes | memoryview, max_px: int) -> DecodedImage:
     """The image as RGBA8 no larger than ``max_px`` on its longest side.
 
     Raises :class:`ImageError` (with a reason fit for a warning) for anything undecodable or

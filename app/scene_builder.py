@@ -1,6 +1,9 @@
 """trimesh scene -> our scene model: world-space meshes, linear materials, shared textures.
 
-See :mod:`app.loaders` for the texture-coordinate contract this module keeps.
+Since glTF has its own reader (:mod:`app.gltf_reader`), this serves OBJ and PLY; the glTF paths
+here (``gltf_doc``, PBR materials) remain for trimesh-read files that carry PBR materials and as
+the reference the glTF reader was checked against. See :mod:`app.loaders` for the
+texture-coordinate contract this module keeps.
 """
 
 from __future__ import annotations
