@@ -52,6 +52,16 @@ def is_int(value: Any) -> TypeGuard[int]:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
+def component_dtype(value: Any) -> np.dtype[Any] | None:
+    """The numpy dtype of a glTF componentType, None for anything else (lists included)."""
+    return COMPONENT_DTYPES.get(value) if is_int(value) else None
+
+
+def type_components(value: Any) -> int | None:
+    """Components per element of a glTF accessor type ("VEC3": 3), None for anything else."""
+    return TYPE_COMPONENTS.get(value) if isinstance(value, str) else None
+
+
 def as_list(value: Any) -> list[Any]:
     """``value`` when it is a JSON array, else empty: the JSON's shapes are not trusted."""
     return value if isinstance(value, list) else []
@@ -179,12 +189,12 @@ class Accessors:
         count = acc.get("count")
         if not is_int(count) or count < 0 or count > MAX_COUNT:
             raise GltfDataError(f"accessor {index} has an impossible count ({count!r})")
-        dtype = COMPONENT_DTYPES.get(acc.get("componentType"))  # type: ignore[arg-type]
+        dtype = component_dtype(acc.get("componentType"))
         if dtype is None:
             raise GltfDataError(
                 f"accessor {index} has an unknown componentType ({acc.get('componentType')!r})"
             )
-        ncomp = TYPE_COMPONENTS.get(acc.get("type"))  # type: ignore[arg-type]
+        ncomp = type_components(acc.get("type"))
         if ncomp is None:
             raise GltfDataError(f"accessor {index} has an unknown type ({acc.get('type')!r})")
         return count, dtype, ncomp
@@ -286,7 +296,7 @@ class Accessors:
             raise GltfDataError(f"{what} has an impossible count ({n!r})")
         if not isinstance(idx_spec, dict) or not isinstance(val_spec, dict):
             raise GltfDataError(f"{what} lacks its indices or values")
-        idx_dtype = COMPONENT_DTYPES.get(idx_spec.get("componentType"))  # type: ignore[arg-type]
+        idx_dtype = component_dtype(idx_spec.get("componentType"))
         if idx_dtype is None or idx_dtype.kind != "u":
             raise GltfDataError(f"{what} has indices of an invalid componentType")
         where = self._strided(
@@ -302,7 +312,8 @@ class Accessors:
 
 def to_float(raw: np.ndarray, normalized: bool) -> np.ndarray:
     """float64; normalized integers per glTF: unsigned c / max, signed max(c / max, -1)."""
-    out = raw.astype(np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):  # NaN/Inf stay; Scene.sanitized repairs
+        out = raw.astype(np.float64)
     if normalized and raw.dtype.kind in "iu":
         out /= float(np.iinfo(raw.dtype).max)
         if raw.dtype.kind == "i":

@@ -165,7 +165,7 @@ class _Reader:
             base = str(mesh.get("name") or f"mesh {index}")
             for prim in _primitives(mesh):
                 mode = prim.get("mode", _TRIANGLES)
-                if mode in _LINE_MODES:
+                if is_int(mode) and mode in _LINE_MODES:
                     kind = _LINE_MODES[mode]
                     self._skipped_modes[kind] = self._skipped_modes.get(kind, 0) + 1
                     self._tick(f"Mesh {base}")

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from app.color import srgb_to_linear
+from app.images import image_to_rgba
 from app.scene import Material, Mesh, Texture, vertex_normals
 
 if TYPE_CHECKING:
@@ -419,18 +420,8 @@ def _obj_diffuse_maps(obj_path: Path) -> dict[str, str]:
 
 
 def _image_to_rgba(image: PILImage) -> np.ndarray:
-    """HxWx4 uint8, row 0 = top; 16-bit and float images are scaled, not clipped."""
-    mode = image.mode
-    if mode in ("I;16", "I;16B", "I;16L", "I", "F"):
-        arr = np.asarray(image, np.float64)
-        hi = 65535.0 if mode.startswith("I;16") else max(float(np.nanmax(arr)), 1.0)
-        if mode == "F":
-            hi = 1.0
-        grey = (np.clip(np.nan_to_num(arr / hi), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-        rgba = np.stack([grey, grey, grey, np.full_like(grey, 255)], axis=2)
-    else:
-        rgba = np.asarray(image.convert("RGBA"), np.uint8)
-    return np.ascontiguousarray(rgba)
+    """HxWx4 uint8, row 0 = top (the same conversion glTF textures get)."""
+    return image_to_rgba(image)
 
 
 def _image_channel_means(image: PILImage) -> tuple[float, float, float] | None:
