@@ -1,13 +1,16 @@
-"""glTF 2.0 files: the JSON document, and what trimesh drops from it (lights, scene options).
+"""glTF 2.0 files: the JSON document and GLB chunks, the node graph, lights and scene options.
 
-:mod:`app.loaders` calls :func:`read_gltf_json` first so a truncated or non-glTF file gets a
-message naming the problem, then reads the geometry.
+:func:`read_gltf_file` refuses what makes a whole file unreadable (a damaged GLB, JSON nested too
+deeply, a newer glTF, a required extension we cannot read) with a message naming the problem;
+:mod:`app.gltf_reader` builds the geometry from what it returns. The node walk is iterative and
+cuts cycles, so the lights here and the meshes there see the same world matrices.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 import struct
 from pathlib import Path
 from typing import Any
@@ -15,44 +18,96 @@ from typing import Any
 import numpy as np
 
 from app.errors import SceneLoadError
+from app.gltf_accessors import Blob, as_dict, as_list, is_int
 from app.scene import PointLight
 from app.scene_builder import float_list, float_or
 
 _GLB_MAGIC = b"glTF"
 _GLB_JSON_CHUNK = 0x4E4F534A
+_GLB_BIN_CHUNK = 0x004E4942
+
+# Extensions whose content this viewer reads (or safely approximates, with a warning), so a file
+# that requires them can be opened. Anything else a file requires is refused by name.
+SUPPORTED_REQUIRED_EXTENSIONS = frozenset(
+    {
+        "KHR_draco_mesh_compression",
+        "KHR_materials_emissive_strength",
+        "KHR_texture_transform",
+        "KHR_lights_punctual",
+        "KHR_materials_pbrSpecularGlossiness",
+        "KHR_mesh_quantization",
+        "KHR_materials_unlit",
+    }
+)
 
 
 def read_gltf_json(path: Path) -> dict[str, Any]:
-    """The glTF JSON document, read by us because trimesh drops samplers and lights.
+    """The glTF JSON document (see :func:`read_gltf_file`)."""
+    return read_gltf_file(path)[0]
 
-    Reading it first also turns a truncated or non-glTF file into a message that names the
-    problem instead of whatever trimesh trips over later.
+
+def read_gltf_file(path: Path) -> tuple[dict[str, Any], Blob | None]:
+    """The glTF JSON document and, for a GLB, its BIN chunk (buffer 0 when it has no uri).
+
+    Everything that makes the whole file unreadable is refused here with a message naming the
+    problem: a truncated or non-glTF file, damaged GLB chunks, JSON nested too deeply to be a
+    model, a glTF version other than 2.x, or a required extension this viewer cannot read.
     """
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise SceneLoadError(f"Cannot read '{path.name}': {exc.strerror or exc}.") from exc
+    binary: Blob | None = None
     if path.suffix.lower() == ".glb":
-        if len(data) < 20 or data[:4] != _GLB_MAGIC:
-            raise SceneLoadError(
-                f"Cannot read '{path.name}': it is not a binary glTF (.glb) "
-                "file (the glTF header is missing or damaged)."
-            )
-        version = struct.unpack_from("<I", data, 4)[0]
-        if version != 2:
-            raise SceneLoadError(
-                f"Cannot read '{path.name}': only glTF 2.0 is supported "
-                f"(this file says version {version})."
-            )
-        chunk_len, chunk_type = struct.unpack_from("<II", data, 12)
-        if chunk_type != _GLB_JSON_CHUNK or 20 + chunk_len > len(data):
-            raise SceneLoadError(
-                f"Cannot read '{path.name}': the file is truncated or damaged "
-                "(its JSON chunk is missing or cut short)."
-            )
-        text = data[20 : 20 + chunk_len]
+        text, binary = _glb_chunks(path, data)
     else:
         text = data
+    doc = _parse_json(path, text)
+    _check_asset(path, doc)
+    _check_required_extensions(path, doc)
+    return doc, binary
+
+
+def _glb_chunks(path: Path, data: bytes) -> tuple[bytes, Blob | None]:
+    """The JSON chunk and the first BIN chunk, every length checked against the file."""
+    if len(data) < 20 or data[:4] != _GLB_MAGIC:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': it is not a binary glTF (.glb) "
+            "file (the glTF header is missing or damaged)."
+        )
+    version, total = struct.unpack_from("<II", data, 4)
+    if version != 2:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': only glTF 2.0 is supported "
+            f"(this file says version {version})."
+        )
+    truncated = SceneLoadError(
+        f"Cannot read '{path.name}': the file is truncated or damaged "
+        "(its JSON chunk is missing or cut short)."
+    )
+    chunk_len, chunk_type = struct.unpack_from("<II", data, 12)
+    if chunk_type != _GLB_JSON_CHUNK or 20 + chunk_len > len(data):
+        raise truncated
+    end = min(total, len(data)) if total >= 20 else len(data)
+    text = data[20 : 20 + chunk_len]
+    pos = 20 + chunk_len
+    pos += (-pos) % 4  # chunks start 4-byte aligned (writers pad, a few forget)
+    binary: Blob | None = None
+    while pos + 8 <= end:
+        length, kind = struct.unpack_from("<II", data, pos)
+        if pos + 8 + length > len(data):
+            raise SceneLoadError(
+                f"Cannot read '{path.name}': the file is truncated "
+                f"(a chunk claims {length} bytes, the file ends {len(data) - pos - 8} bytes later)."
+            )
+        if kind == _GLB_BIN_CHUNK and binary is None:
+            binary = memoryview(data)[pos + 8 : pos + 8 + length]  # no copy of a large BIN
+        pos += 8 + length
+        pos += (-pos) % 4
+    return text, binary
+
+
+def _parse_json(path: Path, text: bytes) -> dict[str, Any]:
     try:
         doc = json.loads(text.decode("utf-8-sig"))
     except UnicodeDecodeError as exc:
@@ -65,19 +120,43 @@ def read_gltf_json(path: Path) -> dict[str, Any]:
             f"Cannot read '{path.name}': its glTF JSON is invalid or truncated "
             f"({exc.msg} at line {exc.lineno}, column {exc.colno})."
         ) from exc
+    except RecursionError as exc:
+        raise SceneLoadError(
+            f"Cannot read '{path.name}': its JSON is nested too deeply to be a real model."
+        ) from exc
     if not isinstance(doc, dict):
         raise SceneLoadError(f"Cannot read '{path.name}': it is JSON but not a glTF document.")
-    version = (
-        str(doc.get("asset", {}).get("version", "2.0"))
-        if isinstance(doc.get("asset"), dict)
-        else "2.0"
-    )
-    if not version.startswith("2"):
+    return doc
+
+
+def _check_asset(path: Path, doc: dict[str, Any]) -> None:
+    asset = as_dict(doc.get("asset"))
+    version = str(asset.get("version", "2.0"))
+    if not re.fullmatch(r"2(\.\d+)?", version.strip()):
         raise SceneLoadError(
             f"Cannot read '{path.name}': only glTF 2.0 is supported "
             f"(this file says version {version})."
         )
-    return doc
+    min_version = asset.get("minVersion")
+    if min_version is not None:
+        match = re.fullmatch(r"(\d+)\.(\d+)", str(min_version).strip())
+        if match is None or (int(match.group(1)), int(match.group(2))) > (2, 0):
+            raise SceneLoadError(
+                f"Cannot open '{path.name}': it needs glTF {min_version}, newer than the "
+                "glTF 2.0 this viewer reads."
+            )
+
+
+def _check_required_extensions(path: Path, doc: dict[str, Any]) -> None:
+    required = doc.get("extensionsRequired") or []
+    if not isinstance(required, list):
+        return
+    for name in required:
+        if str(name) not in SUPPORTED_REQUIRED_EXTENSIONS:
+            raise SceneLoadError(
+                f"Cannot open '{path.name}': it requires the glTF extension {name}, "
+                "which this viewer cannot read."
+            )
 
 
 def gltf_wants_indirect(doc: dict[str, Any] | None) -> bool:
@@ -159,25 +238,55 @@ def gltf_lights(doc: dict[str, Any], warnings: list[str]) -> list[PointLight]:
 
 def _gltf_world_matrices(doc: dict[str, Any]) -> dict[int, np.ndarray]:
     """World matrix of every node reachable from the default scene (cycles are cut)."""
-    nodes = doc.get("nodes") or []
-    scenes = doc.get("scenes") or []
-    try:
-        roots = list(scenes[int(doc.get("scene", 0))].get("nodes", []))
-    except (IndexError, TypeError, ValueError, AttributeError):
-        children = {c for n in nodes for c in (n.get("children") or [])}
-        roots = [i for i in range(len(nodes)) if i not in children]
-    world: dict[int, np.ndarray] = {}
-    stack = [(int(r), np.eye(4)) for r in roots if isinstance(r, int) and 0 <= r < len(nodes)]
+    return {node: matrix for node, matrix in gltf_node_walk(doc, [])}
+
+
+def gltf_root_nodes(doc: dict[str, Any]) -> list[int]:
+    """The default scene's root nodes; every parentless node when the scene is missing or bad."""
+    nodes = as_list(doc.get("nodes"))
+    scenes = doc.get("scenes")
+    index = doc.get("scene", 0)
+    if isinstance(scenes, list) and isinstance(index, int) and 0 <= index < len(scenes):
+        scene = scenes[index]
+        roots = scene.get("nodes") if isinstance(scene, dict) else None
+        if isinstance(roots, list):
+            return [r for r in roots if isinstance(r, int) and 0 <= r < len(nodes)]
+    children = {
+        c for n in nodes if isinstance(n, dict) for c in (n.get("children") or []) if is_int(c)
+    }
+    return [i for i in range(len(nodes)) if i not in children]
+
+
+def gltf_node_walk(doc: dict[str, Any], warnings: list[str]) -> list[tuple[int, np.ndarray]]:
+    """(node, world matrix) in depth-first order, children in file order.
+
+    Iterative, so a 10,000-deep hierarchy is no problem; a node reached a second time (a cycle,
+    or a child with two parents, both invalid glTF) is skipped with one warning.
+    """
+    nodes = as_list(doc.get("nodes"))
+    seen: set[int] = set()
+    cut = 0
+    out: list[tuple[int, np.ndarray]] = []
+    stack = [(r, np.eye(4)) for r in reversed(gltf_root_nodes(doc))]
     while stack:
         i, parent = stack.pop()
-        if i in world:
+        if i in seen:
+            cut += 1
             continue
-        m = parent @ _gltf_local_matrix(nodes[i])
-        world[i] = m
-        for c in nodes[i].get("children") or []:
-            if isinstance(c, int) and 0 <= c < len(nodes) and c not in world:
+        seen.add(i)
+        node = as_dict(nodes[i])
+        m = parent @ _gltf_local_matrix(node)
+        out.append((i, m))
+        children = node.get("children") or []
+        for c in reversed(children if isinstance(children, list) else []):
+            if is_int(c) and 0 <= c < len(nodes):
                 stack.append((c, m))
-    return world
+    if cut:
+        warnings.append(
+            f"node graph: {cut} node reference{'s' if cut != 1 else ''} forming a cycle or "
+            "giving a node a second parent ignored"
+        )
+    return out
 
 
 def _gltf_local_matrix(node: dict[str, Any]) -> np.ndarray:

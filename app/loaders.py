@@ -1,19 +1,20 @@
 """Turn a glTF, GLB, OBJ or PLY file into a :class:`~app.scene.Scene` you can stand inside.
 
-trimesh does the parsing; this module decides what the result means for a walkable VR preview:
-node transforms are baked so every mesh is in world space (Y up, metres), materials become linear
-colours plus de-duplicated RGBA8 textures, and the viewer is placed where a person would stand.
-This module reads the files and the glTF extras trimesh drops (samplers, lights, scene options);
-:mod:`app.scene_builder` turns trimesh's scene into ours, :mod:`app.spawn` finds where to stand
-(on the main floor at eye height, facing down the longest free direction; outside a lone object)
-and :mod:`app.default_lights` lights a file without lights so the first frame is never black.
+glTF and GLB are read by our own reader (:mod:`app.gltf_reader`: accessors decoded with numpy,
+validated before allocation, sparse accessors, Draco, required extensions); trimesh parses OBJ and
+PLY. Either way node transforms are baked so every mesh is in world space (Y up, metres),
+materials become linear colours plus de-duplicated RGBA8 textures, and the viewer is placed where
+a person would stand. :mod:`app.scene_builder` turns trimesh's scene into ours, :mod:`app.spawn`
+finds where to stand (on the main floor at eye height, facing down the longest free direction;
+outside a lone object) and :mod:`app.default_lights` lights a file without lights so the first
+frame is never black.
 
 Texture-coordinate contract (the renderer relies on it): ``Texture.rgba`` row 0 is the top row of
 the image, and a mesh's ``uv`` follows OpenGL's bottom-left origin, i.e. ``v = 1`` is the top image
-row and ``v = 1 - row / height``. trimesh already flips glTF's top-left ``v`` into this convention
-and OBJ ``vt`` is authored in it, so uvs pass through unchanged (values outside [0, 1] included:
-they mean repeat wrapping). A renderer that uploads row 0 first must therefore sample at
-``(u, 1 - v)`` or upload the rows bottom-up.
+row and ``v = 1 - row / height``. The glTF reader flips glTF's top-left ``v`` into this convention
+(``v = 1 - v_gltf``) and OBJ ``vt`` is authored in it, so OBJ uvs pass through unchanged
+(values outside [0, 1] included: they mean repeat wrapping). A renderer that uploads row 0 first
+must therefore sample at ``(u, 1 - v)`` or upload the rows bottom-up.
 
 Loading is staged (read, place, repair, find where to stand, light) and reports progress through
 :class:`~app.progress.Progress`, whose cancel flag stops it between steps. :func:`load_scene` is the
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from app.errors import SceneLoadError
-from app.gltf import gltf_lights, gltf_wants_indirect, read_gltf_json
+from app.gltf_reader import read_gltf
 from app.placement import finish_scene, place
 from app.progress import LoadCancelled, Progress
 from app.scene import Scene
@@ -138,22 +139,22 @@ def _check_path(p: Path) -> None:
 def _read(p: Path, options: LoadOptions, progress: Progress) -> Scene:
     """The file as a Scene in world space (node transforms baked), not yet repaired."""
     ext = p.suffix.lower()
+    if ext in (".gltf", ".glb"):
+        return read_gltf(p, options.max_texture_px, options.max_memory_mb, progress)
     warnings: list[str] = []
-    gltf_doc = read_gltf_json(p) if ext in (".gltf", ".glb") else None
-    tm_scene = trimesh_load(p)
+    tm_scene = trimesh_load(p, options.max_memory_mb, warnings)
     progress.report(0.6, "Building meshes")
-    builder = SceneBuilder(p, gltf_doc, warnings)
+    builder = SceneBuilder(p, None, warnings, options.max_texture_px)
     builder.add_trimesh_scene(tm_scene)
     if ext == ".obj":
         builder.warn_missing_obj_textures()
-    lights = gltf_lights(gltf_doc, warnings) if gltf_doc is not None else []
     return Scene(
         name=p.stem,
         meshes=builder.meshes,
         materials=builder.materials,
         textures=builder.textures,
-        lights=lights,
+        lights=[],
         source=str(p),
         warnings=warnings,
-        indirect=gltf_wants_indirect(gltf_doc),
+        indirect=False,
     )

@@ -1,6 +1,9 @@
 """trimesh scene -> our scene model: world-space meshes, linear materials, shared textures.
 
-See :mod:`app.loaders` for the texture-coordinate contract this module keeps.
+Since glTF has its own reader (:mod:`app.gltf_reader`), this serves OBJ and PLY; the glTF paths
+here (``gltf_doc``, PBR materials) remain for trimesh-read files that carry PBR materials and as
+the reference the glTF reader was checked against. See :mod:`app.loaders` for the
+texture-coordinate contract this module keeps.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from app.color import srgb_to_linear
+from app.images import fitted_size, image_to_rgba
 from app.scene import Material, Mesh, Texture, vertex_normals
 
 if TYPE_CHECKING:
@@ -35,8 +39,15 @@ class SceneBuilder:
     materials is uploaded once.
     """
 
-    def __init__(self, path: Path, gltf_doc: dict[str, Any] | None, warnings: list[str]) -> None:
+    def __init__(
+        self,
+        path: Path,
+        gltf_doc: dict[str, Any] | None,
+        warnings: list[str],
+        max_texture_px: int = 8192,
+    ) -> None:
         self.path = path
+        self.max_texture_px = max_texture_px
         self.gltf = gltf_doc
         self.colors_linear = gltf_doc is not None  # glTF COLOR_0 is linear; OBJ/PLY are sRGB
         self.warnings = warnings
@@ -298,6 +309,7 @@ class SceneBuilder:
             label or image.info.get("file_path") or getattr(image, "filename", "") or material
         )
         try:
+            image = self._fit(image, material, label)
             rgba = _image_to_rgba(image)
         except Exception as exc:  # noqa: BLE001 - PIL decodes lazily and raises anything
             self.warnings.append(
@@ -320,6 +332,22 @@ class SceneBuilder:
             self.textures.append(Texture(Path(label).name or material, rgba, repeat))
         self._texture_keys[key] = index
         return index
+
+    def _fit(self, image: PILImage, material: str, label: str) -> PILImage:
+        """``image`` no larger than ``scene.max_texture_px`` on its longest side (noted)."""
+        from PIL import Image
+
+        w, h = image.size
+        target = fitted_size((w, h), self.max_texture_px)
+        if target == (w, h):
+            return image
+        if image.format == "JPEG":
+            image.draft("RGB", target)  # decode at a power-of-two reduction, at least `target`
+        self.warnings.append(
+            f"material '{material}': texture '{Path(label).name}' downscaled from {w} x {h} "
+            f"to {target[0]} x {target[1]} (scene.max_texture_px)"
+        )
+        return image.resize(target, Image.Resampling.BILINEAR, reducing_gap=2.0)
 
     # ---- glTF details trimesh does not keep ----------------------------------------------
 
@@ -416,18 +444,8 @@ def _obj_diffuse_maps(obj_path: Path) -> dict[str, str]:
 
 
 def _image_to_rgba(image: PILImage) -> np.ndarray:
-    """HxWx4 uint8, row 0 = top; 16-bit and float images are scaled, not clipped."""
-    mode = image.mode
-    if mode in ("I;16", "I;16B", "I;16L", "I", "F"):
-        arr = np.asarray(image, np.float64)
-        hi = 65535.0 if mode.startswith("I;16") else max(float(np.nanmax(arr)), 1.0)
-        if mode == "F":
-            hi = 1.0
-        grey = (np.clip(np.nan_to_num(arr / hi), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-        rgba = np.stack([grey, grey, grey, np.full_like(grey, 255)], axis=2)
-    else:
-        rgba = np.asarray(image.convert("RGBA"), np.uint8)
-    return np.ascontiguousarray(rgba)
+    """HxWx4 uint8, row 0 = top (the same conversion glTF textures get)."""
+    return image_to_rgba(image)
 
 
 def _image_channel_means(image: PILImage) -> tuple[float, float, float] | None:

@@ -1,0 +1,301 @@
+"""glTF materials and textures -> linear-colour :class:`Material` and shared RGBA8 textures.
+
+The factors come straight from the JSON (full float precision), with glTF's defaults: white,
+fully metallic, fully rough. The renderer has one base-colour texture and scalar metal/roughness,
+so a metallicRoughnessTexture is folded into the factors by its average, and
+KHR_materials_pbrSpecularGlossiness becomes a base colour (diffuse) and a roughness (1 -
+glossiness). A texture used by ten materials is decoded and uploaded once.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from app.gltf_accessors import (
+    Accessors,
+    Blob,
+    BufferUnavailable,
+    GltfDataError,
+    UriResolver,
+    as_dict,
+    as_list,
+    is_int,
+)
+from app.images import ImageError, decode_image, fitted_size, image_size, rgba_channel_means
+from app.progress import Progress
+from app.scene import Material, Texture
+from app.scene_builder import float_list, float_or
+
+_GL_CLAMP_TO_EDGE = 33071
+
+
+class GltfImages:
+    """Image bytes by glTF image index (from a file, a data: URI or a buffer view), read once."""
+
+    def __init__(
+        self, doc: dict[str, Any], accessors: Accessors, resolver: UriResolver, max_px: int
+    ) -> None:
+        self.images = as_list(doc.get("images"))
+        self.accessors = accessors
+        self.resolver = resolver
+        self.max_px = max_px
+        self._bytes: dict[int, Blob | None] = {}
+        self._failures: dict[int, str] = {}
+
+    def label(self, index: int) -> str:
+        """The image's file name, or its name, to name textures and missing files after."""
+        spec = as_dict(self.images[index]) if 0 <= index < len(self.images) else {}
+        uri = spec.get("uri")
+        if isinstance(uri, str) and not uri.startswith("data:"):
+            from urllib.parse import unquote
+
+            return unquote(uri)
+        name = spec.get("name")
+        return str(name) if name else f"image {index}"
+
+    def data(self, index: int) -> Blob | None:
+        """The encoded image, or None (the reason is kept for :meth:`failure`)."""
+        if index in self._bytes:
+            return self._bytes[index]
+        spec = self.images[index] if 0 <= index < len(self.images) else None
+        result: Blob | None = None
+        if not isinstance(spec, dict):
+            self._failures[index] = f"image {index} does not exist"
+        elif isinstance(spec.get("uri"), str):
+            before = len(self.resolver.warnings)
+            result = self.resolver.read(spec["uri"], f"image {index}")
+            if result is None:
+                # The material's warning names the image; the resolver's would say it twice.
+                added = self.resolver.warnings[before:]
+                del self.resolver.warnings[before:]
+                self._failures[index] = added[-1] if added else "it cannot be read"
+        elif spec.get("bufferView") is not None:
+            try:
+                result = self.accessors.view_bytes(spec["bufferView"], f"image {index}")
+            except (GltfDataError, BufferUnavailable) as exc:
+                self._failures[index] = str(exc)
+        else:
+            self._failures[index] = f"image {index} has neither a uri nor a buffer view"
+        self._bytes[index] = result
+        return result
+
+    def failure(self, index: int) -> str:
+        return self._failures.get(index, "it cannot be read")
+
+    def decoded_bytes(self, index: int) -> int:
+        """RGBA8 bytes the image will take once decoded (0 when it will not decode)."""
+        data = self.data(index)
+        size = image_size(data) if data is not None else None
+        if size is None:
+            return 0
+        w, h = fitted_size(size, self.max_px)
+        return w * h * 4
+
+
+class GltfMaterials:
+    """Converts glTF materials on first use, sharing textures by image, wrap and opacity."""
+
+    def __init__(
+        self,
+        doc: dict[str, Any],
+        images: GltfImages,
+        warnings: list[str],
+        progress: Progress,
+        tick: Any,
+    ) -> None:
+        self.doc = doc
+        self.images = images
+        self.warnings = warnings
+        self.progress = progress
+        self.tick = tick  # callable(text) -> None: one unit of load progress done
+        self.materials: list[Material] = []
+        self.textures: list[Texture] = []
+        self._by_gltf: dict[Any, int] = {}
+        self._texture_keys: dict[tuple[int, bool, bool], int | None] = {}
+        self._texture_digests: dict[tuple[bytes, bool], int] = {}
+        self._decoded: dict[int, np.ndarray | None] = {}
+
+    def used_images(self, material_indices: set[int]) -> set[int]:
+        """Image indices the given materials sample (for the memory estimate)."""
+        out = set()
+        for m in material_indices:
+            spec = self._spec(m)
+            for info in _texture_infos(spec):
+                image = self._image_of(info)
+                if image is not None:
+                    out.add(image)
+        return out
+
+    def index(self, gltf_index: Any, has_colors: bool) -> int:
+        """Our material index for a primitive's ``material`` (None: the default material)."""
+        if gltf_index is None or self._spec(gltf_index) is None:
+            if gltf_index is not None:
+                self.warnings.append(f"material {gltf_index} does not exist, using a default")
+            # Vertex colours carry the colour: a white base keeps them as authored.
+            key = "vertex-colours" if has_colors else "default"
+            if key not in self._by_gltf:
+                base = (1.0, 1.0, 1.0, 1.0) if has_colors else Material("default").base_color
+                self._by_gltf[key] = len(self.materials)
+                self.materials.append(Material(key, base))
+            return self._by_gltf[key]
+        if gltf_index not in self._by_gltf:
+            material = self._convert(gltf_index)
+            self._by_gltf[gltf_index] = len(self.materials)
+            self.materials.append(material)
+        return self._by_gltf[gltf_index]
+
+    def _spec(self, index: Any) -> dict[str, Any] | None:
+        mats = as_list(self.doc.get("materials"))
+        if is_int(index) and 0 <= index < len(mats) and isinstance(mats[index], dict):
+            return as_dict(mats[index])
+        return None
+
+    # ---- one material ---------------------------------------------------------------------
+
+    def _convert(self, index: int) -> Material:
+        doc = self._spec(index) or {}
+        name = str(doc.get("name") or f"material {len(self.materials)}")
+        exts = as_dict(doc.get("extensions"))
+        pbr = as_dict(doc.get("pbrMetallicRoughness"))
+        base = float_list(pbr.get("baseColorFactor"), 4, 1.0)
+        metallic = float_or(pbr.get("metallicFactor"), 1.0)
+        roughness = float_or(pbr.get("roughnessFactor"), 1.0)
+        tex_info = pbr.get("baseColorTexture")
+        sg = exts.get("KHR_materials_pbrSpecularGlossiness")
+        if isinstance(sg, dict) and "pbrMetallicRoughness" not in doc:
+            base = float_list(sg.get("diffuseFactor"), 4, 1.0)
+            metallic = 0.0
+            roughness = 1.0 - float_or(sg.get("glossinessFactor"), 1.0)
+            tex_info = sg.get("diffuseTexture")
+        emissive = float_list(doc.get("emissiveFactor"), 3, 0.0)
+        strength = exts.get("KHR_materials_emissive_strength")
+        if isinstance(strength, dict):
+            emissive = [e * float_or(strength.get("emissiveStrength"), 1.0) for e in emissive]
+        opaque = str(doc.get("alphaMode", "OPAQUE")).upper() == "OPAQUE"
+        if opaque:
+            base[3] = 1.0  # glTF: alpha is ignored for OPAQUE materials
+        texture = None
+        if isinstance(tex_info, dict):
+            texture = self._base_texture(name, tex_info, opaque)
+        mr_info = pbr.get("metallicRoughnessTexture")
+        if isinstance(mr_info, dict):
+            # No per-pixel metal/roughness in the renderer: fold the map's average into the
+            # factors (glTF: G = roughness, B = metalness) rather than ignore it.
+            image = self._image_of(mr_info)
+            rgba = self._decode(image, name, "metallic-roughness") if image is not None else None
+            if rgba is not None:
+                means = rgba_channel_means(rgba)
+                roughness *= means[1]
+                metallic *= means[2]
+        return Material(
+            name,
+            (base[0], base[1], base[2], base[3]),
+            texture,
+            float(roughness),
+            float(metallic),
+            (emissive[0], emissive[1], emissive[2]),
+        )
+
+    def _base_texture(self, material: str, info: dict[str, Any], opaque: bool) -> int | None:
+        if "KHR_texture_transform" in (info.get("extensions") or {}):
+            self.warnings.append(f"material '{material}': texture transform ignored")
+        image = self._image_of(info)
+        if image is None:
+            self.warnings.append(
+                f"material '{material}': its base colour texture {info.get('index')!r} does not "
+                "exist, using its colour only"
+            )
+            return None
+        repeat = self._repeats(info)
+        key = (image, repeat, opaque)
+        if key in self._texture_keys:
+            return self._texture_keys[key]
+        rgba = self._decode(image, material, "base colour")
+        if rgba is None:
+            self._texture_keys[key] = None
+            return None
+        if opaque:
+            rgba = rgba.copy()
+            rgba[:, :, 3] = 255
+        # Two images with the same pixels (an exporter writing a file twice) are one texture.
+        digest = (
+            hashlib.blake2b(rgba.tobytes(), digest_size=16).digest() + repr(rgba.shape).encode()
+        )
+        index = self._texture_digests.get((digest, repeat))
+        if index is None:
+            index = len(self.textures)
+            self._texture_digests[(digest, repeat)] = index
+            label = Path(self.images.label(image)).name or material
+            self.textures.append(Texture(label, rgba, repeat))
+        self._texture_keys[key] = index
+        return index
+
+    def _decode(self, image: int, material: str, role: str) -> np.ndarray | None:
+        """RGBA8 of a glTF image, decoded once; None (with a warning) when it cannot be."""
+        if image in self._decoded:
+            return self._decoded[image]
+        label = self.images.label(image)
+        data = self.images.data(image)
+        rgba: np.ndarray | None = None
+        if data is None:
+            self.warnings.append(
+                f"material '{material}': {role} texture '{label}' could not be read "
+                f"({self.images.failure(image)}), using its colour only"
+            )
+        else:
+            try:
+                decoded = decode_image(data, self.images.max_px)
+                rgba = decoded.rgba
+                if decoded.note:
+                    self.warnings.append(f"texture '{Path(label).name}': {decoded.note}")
+            except ImageError as exc:
+                self.warnings.append(
+                    f"material '{material}': {role} texture '{Path(label).name}' dropped "
+                    f"({exc}), using its colour only"
+                )
+        self._decoded[image] = rgba
+        self.tick(f"Texture {Path(label).name}")
+        return rgba
+
+    def _image_of(self, info: dict[str, Any]) -> int | None:
+        textures = as_list(self.doc.get("textures"))
+        index = info.get("index")
+        if not is_int(index) or not 0 <= index < len(textures):
+            return None
+        tex = textures[index]
+        if not isinstance(tex, dict):
+            return None
+        source = tex.get("source")
+        exts = as_dict(tex.get("extensions"))
+        for ext in exts.values():  # EXT_texture_webp, MSFT_texture_dds... name their own image
+            if source is None and isinstance(ext, dict) and is_int(ext.get("source")):
+                source = ext["source"]
+        n_images = len(self.images.images)
+        return source if is_int(source) and 0 <= source < n_images else None
+
+    def _repeats(self, info: dict[str, Any]) -> bool:
+        """False only when the sampler explicitly clamps; mirrored repeat is treated as repeat."""
+        try:
+            texture = self.doc["textures"][int(info["index"])]
+            sampler = self.doc["samplers"][int(texture["sampler"])]
+        except (KeyError, IndexError, TypeError, ValueError):
+            return True
+        if not isinstance(sampler, dict):
+            return True
+        return _GL_CLAMP_TO_EDGE not in (sampler.get("wrapS"), sampler.get("wrapT"))
+
+
+def _texture_infos(spec: dict[str, Any] | None) -> list[dict[str, Any]]:
+    if spec is None:
+        return []
+    pbr = as_dict(spec.get("pbrMetallicRoughness"))
+    exts = as_dict(spec.get("extensions"))
+    sg = exts.get("KHR_materials_pbrSpecularGlossiness")
+    candidates = [pbr.get("baseColorTexture"), pbr.get("metallicRoughnessTexture")]
+    if isinstance(sg, dict):
+        candidates.append(sg.get("diffuseTexture"))
+    return [c for c in candidates if isinstance(c, dict)]
