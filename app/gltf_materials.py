@@ -181,6 +181,11 @@ class GltfMaterials:
         texture = None
         if isinstance(tex_info, dict):
             texture = self._base_texture(name, tex_info, opaque)
+        elif tex_info is not None:
+            self.warnings.append(
+                f"material '{name}': its base colour texture reference {tex_info!r:.40} is "
+                "not a texture, using its colour only"
+            )
         mr_info = pbr.get("metallicRoughnessTexture")
         if isinstance(mr_info, dict):
             # No per-pixel metal/roughness in the renderer: fold the map's average into the

@@ -95,6 +95,10 @@ class _Reader:
         self._names: dict[str, int] = {}
         self._skipped_modes: dict[str, int] = {}
         self._dropped: list[str] = []
+        required = doc.get("extensionsRequired")
+        self._draco_required = isinstance(required, list) and (
+            "KHR_draco_mesh_compression" in required
+        )
 
     def _tick(self, text: str) -> None:
         self._done += 1
@@ -207,8 +211,18 @@ class _Reader:
         if mode not in (_TRIANGLES, _STRIP, _FAN):
             raise _Dropped(f"unknown primitive mode {mode!r}")
         draco = as_dict(prim.get("extensions")).get("KHR_draco_mesh_compression")
+        decoded = None
         if isinstance(draco, dict):
-            pos, normals, uvs, colors, flat = self._draco(name, attrs, draco)
+            try:
+                decoded = self._draco(name, attrs, draco)
+            except _Dropped as exc:
+                # Draco is optional here when the file does not require it and the primitive
+                # keeps plain accessors (a fallback for viewers without Draco): use those.
+                if self._draco_required or attrs.get("POSITION") is None:
+                    raise
+                self.warnings.append(f"mesh '{name}': {exc}; its uncompressed copy is shown")
+        if decoded is not None:
+            pos, normals, uvs, colors, flat = decoded
         else:
             pos = self._positions(attrs)
             normals = self._optional(name, attrs, "NORMAL", ("VEC3",), len(pos))

@@ -692,7 +692,12 @@ def _gltf_files_and_uris(w: _Writer, doc: dict[str, Any], binary: bytes) -> None
 def _sparse_doc(doc: dict[str, Any], binary: bytes, idx: list[int], count: int | None = None):
     d = box_doc()
     i_view = d.view(np.array(idx, np.uint16).tobytes())
-    v_view = d.view(np.tile(np.array([0.0, 2.0, 0.0], np.float32), (len(idx), 1)).tobytes())
+    # each moved vertex keeps its x and z and rises by 1.5 m (vertex 0, a top corner, to y = 2;
+    # no triangle collapses)
+    pos = _box()[0]
+    values = np.asarray(pos, np.float32)[np.clip(idx, 0, len(pos) - 1)].copy()
+    values[:, 1] += 1.5
+    v_view = d.view(values.tobytes())
     d.json["accessors"][1]["sparse"] = {
         "count": len(idx) if count is None else count,
         "indices": {"bufferView": i_view, "componentType": 5123},

@@ -347,7 +347,7 @@ def test_gltf_rule_strips_and_fans_are_triangulated(
 
 
 def test_gltf_rule_sparse_accessors_are_applied(cases: dict[str, corpus.Case]) -> None:
-    """Sparse values move vertices 0 and 1 to y = 2: the box grows from 1 m to 2.5 m tall."""
+    """Sparse values raise vertices 0 and 1 by 1.5 m: the box grows from 1 m to 2.5 m tall."""
     scene = _loaded(cases["gltf-sparse-valid"])
     assert scene.triangle_count == corpus.BOX_TRIS
     assert _height(scene) == pytest.approx(2.5 * _height(_loaded(cases["valid-box"])), rel=1e-4)
@@ -368,8 +368,7 @@ def test_gltf_rule_bad_sparse_is_refused_or_warned(
 @pytest.mark.parametrize(
     "name, words",
     [
-        ("gltf-ext-required-draco", ("KHR_draco_mesh_compression",)),
-        ("gltf-ext-draco-garbage-data", ("KHR_draco_mesh_compression",)),
+        ("gltf-ext-draco-garbage-data", ("Draco",)),
         ("gltf-ext-required-meshopt", ("EXT_meshopt_compression",)),
         ("gltf-ext-required-unknown", ("EXT_made_up",)),
         ("gltf-ext-required-basisu", ("KHR_texture_basisu",)),
@@ -385,7 +384,8 @@ def test_gltf_rule_required_extensions_we_lack_are_refused(
 @pytest.mark.parametrize(
     "name",
     [
-        "gltf-ext-draco-with-fallback",
+        "gltf-ext-required-draco",  # declared required, read by DracoPy
+        "gltf-ext-draco-with-fallback",  # the Draco data is broken: the plain accessors serve
         "gltf-ext-meshopt-with-fallback",
         "gltf-ext-used-unknown",
         "gltf-ext-required-quantization",
@@ -402,39 +402,43 @@ def test_gltf_rule_optional_or_supported_extensions_load(
 @pytest.mark.parametrize(
     "name",
     [
-        "gltf-structure-node-cycle",
-        "gltf-structure-node-self-child",
-        "gltf-type-materials-0-pbrMetallicRoughness-baseColorTexture-str",
-        "gltf-type-materials-0-pbrMetallicRoughness-baseColorTexture-neg",
         "gltf-count-accessors-1-count-0",
         "gltf-range-meshes-0-primitives-0-attributes-POSITION-0",
         "gltf-structure-attributes-empty",
         "gltf-data-uri-buffer-bad-chars",
         "gltf-data-uri-buffer-empty",
         "gltf-structure-json-bom",
+        "gltf-structure-node-cycle",
+        "gltf-structure-node-self-child",
+        "gltf-type-materials-0-pbrMetallicRoughness-baseColorTexture-str",
+        "gltf-type-materials-0-pbrMetallicRoughness-baseColorTexture-neg",
     ],
 )
-def test_gltf_rule_broken_structure_is_refused_in_words(
+def test_gltf_rule_broken_structure_is_refused_in_words_or_repaired_with_a_warning(
     name: str, cases: dict[str, corpus.Case]
 ) -> None:
-    """Refused naming the problem, not 'an unexpected X' or a bare Python exception text."""
+    """Refused naming the problem (not 'an unexpected X' or a bare Python exception text), or,
+    where something can be cut away (a node cycle, a broken texture reference), loaded with a
+    warning that says what was dropped."""
     try:
-        _loaded(cases[name])
+        scene = _loaded(cases[name])
     except SceneLoadError as exc:
         msg = str(exc)
         assert cases[name].path.name in msg
         for raw in ("unexpected", "AssertionError", "'POSITION')", "BOM (decode"):
             assert raw not in msg, msg
         return
-    if name.endswith(("self-child", "json-bom")):
-        return  # loading these is fine too (a self-child loop broken, a BOM skipped)
-    pytest.fail(f"{name} loaded")
+    if name.endswith("json-bom"):
+        return  # a BOM is skipped: nothing was wrong with the model
+    words = ("cycle", "loop") if "node" in name else ("texture",)
+    assert any(any(w in note.lower() for w in words) for note in scene.warnings), scene.warnings
 
 
-def test_gltf_rule_deep_extras_do_not_stop_a_load(cases: dict[str, corpus.Case]) -> None:
-    """Extras are not geometry: a 10,000-deep ``extras`` is skipped, the box still loads."""
+def test_gltf_rule_deep_extras_are_refused_in_one_line(cases: dict[str, corpus.Case]) -> None:
+    """A 10,000-deep ``extras`` is no exported model (Python's JSON parser stops at ~1,000
+    levels): refused in words, never a RecursionError traceback."""
     for name in ("gltf-structure-extras-nested-10000", "gltf-structure-node-extras-nested-10000"):
-        assert _loaded(cases[name]).triangle_count == corpus.BOX_TRIS, name
+        _refused(cases[name].path, "nested too deeply")
 
 
 def test_gltf_rule_deep_node_chains_load(cases: dict[str, corpus.Case]) -> None:
