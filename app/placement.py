@@ -121,12 +121,16 @@ def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = Non
             notes.append(note)
     if spawn.floor_y is None:
         log.info("%s: no interior found, viewing it from outside", scene.name)
-    final = replace(
-        scene, spawn=spawn.viewpoint, floor_y=spawn.floor_y, lights=lights, warnings=notes
-    ).sanitized()
-    if final.triangle_count == scene.triangle_count:  # repaired already: the same triangles
-        final.ray_caster = caster  # the session reuses it: one embree build per load
-    return final
+    # The geometry was sanitized before the search: only what it added is checked again, and
+    # the caster stays with the scene, so the session reuses it (one embree build per load).
+    return replace(
+        scene,
+        spawn=spawn.viewpoint,
+        floor_y=spawn.floor_y,
+        lights=lights,
+        warnings=notes,
+        ray_caster=caster,
+    ).sanitized(geometry=False)
 
 
 def unit_warning(scene: Scene, spawn: SpawnResult, caster: RayCaster | None = None) -> str | None:

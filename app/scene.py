@@ -122,20 +122,26 @@ class Scene:
             or [np.zeros(0, np.int32)]
         )
 
-    def sanitized(self) -> Scene:
-        """A copy with every non-finite or degenerate piece repaired or dropped (and noted)."""
+    def sanitized(self, geometry: bool = True) -> Scene:
+        """A copy with every non-finite or degenerate piece repaired or dropped (and noted).
+
+        ``geometry=False`` repairs only the lights and the spawn, keeping meshes, materials,
+        textures and the cached ray caster: for a scene whose geometry was sanitized already.
+        """
         notes: list[str] = list(self.warnings)
-        meshes = []
-        drops = _Drops()
-        for m in self.meshes:
-            fixed = _sanitize_mesh(m, len(self.materials), drops)
-            if fixed is not None:
-                meshes.append(fixed)
-        notes.extend(drops.notes())
-        textures = [_sanitize_texture(t, notes) for t in self.textures]
-        materials = [_sanitize_material(mat, len(textures), notes) for mat in self.materials]
-        if not materials:
-            materials = [Material("default")]
+        meshes, materials, textures = self.meshes, self.materials, self.textures
+        if geometry:
+            meshes = []
+            drops = _Drops()
+            for m in self.meshes:
+                fixed = _sanitize_mesh(m, len(self.materials), drops)
+                if fixed is not None:
+                    meshes.append(fixed)
+            notes.extend(drops.notes())
+            textures = [_sanitize_texture(t, notes) for t in self.textures]
+            materials = [_sanitize_material(mat, len(textures), notes) for mat in self.materials]
+            if not materials:
+                materials = [Material("default")]
         lights = []
         for i, light in enumerate(self.lights):
             fixed_light = _sanitize_light(light)
@@ -157,7 +163,8 @@ class Scene:
             lights=lights,
             spawn=spawn,
             warnings=notes,
-            ray_caster=None,  # the meshes are new arrays: a cached caster may not match them
+            # new mesh arrays: a cached caster may not match them
+            ray_caster=None if geometry else self.ray_caster,
         )
 
 
