@@ -32,10 +32,18 @@ class GpuMesh:
 
 
 class GpuScene:
-    def __init__(self, ctx: moderngl.Context, scene: Scene, anisotropy: float = 1.0) -> None:
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        scene: Scene,
+        anisotropy: float = 1.0,
+        stream_in: bool = False,
+    ) -> None:
         self.ctx = ctx
         self.scene = scene
-        self.streamer = TextureStreamer(ctx, scene.textures, anisotropy=anisotropy)
+        self.streamer = TextureStreamer(
+            ctx, scene.textures, anisotropy=anisotropy, stream_in=stream_in
+        )
         self.meshes: list[GpuMesh] = []
         for m in scene.meshes:
             colors = m.colors if m.colors is not None else np.ones_like(m.positions)

@@ -45,10 +45,10 @@ class OffscreenHost:
     def eye_size(self) -> tuple[int, int]:
         return self.width // 2, self.height
 
-    def set_scene(self, scene: Scene | None) -> None:
+    def set_scene(self, scene: Scene | None, stream_in: bool = False) -> None:
         self.scene = scene
         with self.ctx:
-            self.renderer.set_scene(scene)
+            self.renderer.set_scene(scene, stream_in=stream_in)
         self.sync_photons()
 
     def sync_photons(self) -> None:

@@ -120,12 +120,16 @@ class Renderer:
         return self._by_name[name]
 
     # -- scene and targets ---------------------------------------------------------------------
-    def set_scene(self, scene: Scene | None) -> None:
+    def set_scene(self, scene: Scene | None, stream_in: bool = False) -> None:
+        """Upload ``scene`` (``stream_in``: huge texture sets arrive over the next frames, see
+        :class:`render.texture_stream.TextureStreamer`)."""
         if self.gpu_scene is not None:
             self.gpu_scene.release()
             self.gpu_scene = None
         if scene is not None:
-            self.gpu_scene = GpuScene(self.ctx, scene, self.settings.render.anisotropy)
+            self.gpu_scene = GpuScene(
+                self.ctx, scene, self.settings.render.anisotropy, stream_in=stream_in
+            )
             self._warm_up()
 
     def set_photons(self, photons: PhotonMap | None) -> None:

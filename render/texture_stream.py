@@ -17,11 +17,16 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
+from app.progress import Progress
 from app.scene import Texture
 from app.tcr import build_pyramid, level_bytes
 
 log = logging.getLogger(__name__)
 GL_SRGB8_ALPHA8 = 0x8C43
+# The window streams textures in (coarse first, finer levels within the frame budget) once a
+# scene's textures exceed this, starting each at a level no larger than STREAM_IN_START_PX.
+STREAM_IN_ABOVE_BYTES = 256 << 20
+STREAM_IN_START_PX = 128
 
 
 @dataclass
@@ -29,6 +34,28 @@ class Resident:
     tex: moderngl.Texture
     base: int  # pyramid level held at the GL texture's level 0
     unused_frames: int = 0  # frames since the finest resident level was last needed
+
+
+def gl_pyramid(texture: Texture) -> list[np.ndarray]:
+    """The texture's pyramid in GL row order (bottom row first), built once per texture.
+
+    Building a pyramid is CPU work (seconds for a gigabyte of textures): the window's load
+    worker calls :func:`prepare_textures`, so the UI thread only uploads.
+    """
+    cached = getattr(texture, "_gl_pyramid", None)
+    if cached is None or cached[0] is not texture.rgba:
+        levels = [np.ascontiguousarray(np.flipud(level)) for level in build_pyramid(texture.rgba)]
+        cached = (texture.rgba, levels)
+        setattr(texture, "_gl_pyramid", cached)  # noqa: B010 - a cache, not a model field
+    return cached[1]
+
+
+def prepare_textures(textures: list[Texture], progress: Progress | None = None) -> None:
+    """Build every texture's pyramid now (on a worker thread), reporting as it goes."""
+    for i, texture in enumerate(textures):
+        if progress is not None:
+            progress.report(i / max(len(textures), 1), f"Preparing textures ({i}/{len(textures)})")
+        gl_pyramid(texture)
 
 
 class TextureStreamer:
@@ -39,20 +66,34 @@ class TextureStreamer:
         budget_bytes: int = 8 << 20,
         keep_frames: int = 30,
         anisotropy: float = 1.0,
+        stream_in: bool = False,
     ) -> None:
+        """``stream_in``: when the textures' full chains exceed :data:`STREAM_IN_ABOVE_BYTES`,
+        start every texture at a small level and let :meth:`update` bring the finer ones within
+        the per-frame budget (the window: a gigabyte of textures never freezes it); headless
+        hosts upload everything at once so their first frame is at full quality."""
         self.ctx = ctx
         self.budget_bytes = budget_bytes
         self.keep_frames = keep_frames
         self.anisotropy = anisotropy
         self.sources = textures
-        self.pyramids = [
-            [np.ascontiguousarray(np.flipud(level)) for level in build_pyramid(t.rgba)]
-            for t in textures
-        ]  # GL rows: bottom first
+        self.pyramids = [gl_pyramid(t) for t in textures]  # GL rows: bottom first
         self.level_sizes = [[(p.shape[1], p.shape[0]) for p in pyr] for pyr in self.pyramids]
         self.level_bytes = [level_bytes(*t.size) for t in textures]
-        self.resident: list[Resident] = [self._make(i, 0) for i in range(len(textures))]
+        total = sum(self.chain_bytes(i, 0) for i in range(len(textures)))
+        start = [
+            self._small_level(i) if stream_in and total > STREAM_IN_ABOVE_BYTES else 0
+            for i in range(len(textures))
+        ]
+        self.resident: list[Resident] = [self._make(i, start[i]) for i in range(len(textures))]
         self.uploaded_bytes = 0  # in the last update, for statistics
+
+    def _small_level(self, index: int) -> int:
+        """The finest level no larger than :data:`STREAM_IN_START_PX` on its longest side."""
+        for k, (w, h) in enumerate(self.level_sizes[index]):
+            if max(w, h) <= STREAM_IN_START_PX:
+                return k
+        return self.n_levels(index)
 
     def n_levels(self, index: int) -> int:
         """Index of the coarsest (1x1) level of texture ``index``."""

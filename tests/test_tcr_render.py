@@ -212,3 +212,32 @@ def test_gazed_object_drops_one_level_while_the_gaze_is_held():
     settings.set("tcr.preset", "ergonomics")
     session.apply_path_frame(int(2.0 / FIXED_DT))
     assert session.gazed == 0 and session.levels == [1]
+
+
+def test_a_huge_texture_set_streams_in_instead_of_freezing_the_window(monkeypatch):
+    """The window's path (stream_in): past the threshold every texture starts small and the
+    finer levels arrive within the per-frame budget; below it, or headless, all at once."""
+    import render.texture_stream as ts
+
+    ctx = create_headless()
+    try:
+        with ctx:
+            tex = [Texture(f"t{i}", np.full((512, 512, 4), 90 + i, np.uint8)) for i in range(6)]
+            monkeypatch.setattr(ts, "STREAM_IN_ABOVE_BYTES", 4 << 20)  # 6 x 1.4 MB is "huge"
+            headless = TextureStreamer(ctx, tex)
+            assert [r.base for r in headless.resident] == [0] * 6
+            s = TextureStreamer(ctx, tex, budget_bytes=3 << 20, stream_in=True)
+            assert [r.tex.size for r in s.resident] == [(128, 128)] * 6  # what arrives first
+            frames = 0
+            while any(r.base for r in s.resident):
+                s.update([0] * 6)
+                frames += 1
+                assert s.uploaded_bytes <= 3 << 20
+            assert frames == 3 and [r.tex.size for r in s.resident] == [(512, 512)] * 6
+            monkeypatch.setattr(ts, "STREAM_IN_ABOVE_BYTES", 64 << 20)  # a normal room
+            small = TextureStreamer(ctx, tex, stream_in=True)
+            assert [r.base for r in small.resident] == [0] * 6
+            for streamer in (headless, s, small):
+                streamer.release()
+    finally:
+        ctx.release()

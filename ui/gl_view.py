@@ -85,14 +85,14 @@ class StereoView(QOpenGLWidget):
             self.gl_failed.emit(str(exc))
             return
         if self._pending_scene is not None:
-            self.renderer.set_scene(self._pending_scene)
+            self.renderer.set_scene(self._pending_scene, stream_in=True)
             self._pending_scene = None
 
     def paintGL(self) -> None:
         if self.renderer is None or self.ctx is None:
             return
         if self._pending_scene is not None:
-            self.renderer.set_scene(self._pending_scene)
+            self.renderer.set_scene(self._pending_scene, stream_in=True)
             self.renderer.overlay.set_heat_map(None)  # measured on the scene before
             self._pending_scene = None
         if self._pending_photons is not None:

@@ -41,6 +41,7 @@ from app.scene import Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
+from render.texture_stream import prepare_textures
 from ui import guard
 from ui.cps_panel import CpsPanel
 from ui.gl_view import StereoView, default_format
@@ -548,7 +549,9 @@ class _Loading:
 def _load_with_session(
     name: str, options: LoadOptions, progress: Progress
 ) -> tuple[Scene, CameraPath]:
-    scene = scenes.resolve(name, options, progress)
+    scene = scenes.resolve(name, options, progress.span(0.0, 0.85))
+    # Texture pyramids are CPU work: built here, so the UI thread only uploads them.
+    prepare_textures(scene.textures, progress.span(0.85, 1.0))
     return scene, scenes.default_path(scene)
 
 
