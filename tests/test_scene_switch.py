@@ -144,3 +144,14 @@ def test_a_slow_load_shows_progress_and_can_be_cancelled(window, qtbot, tmp_path
     window.load(str(box_obj(tmp_path / "slow.obj", 4)))  # and the next load still works
     window.wait_for_load()
     assert window.session.scene.name == "slow"
+
+
+def test_typing_a_bad_unit_scale_is_refused_in_the_status_line(window):
+    combo = window.panel.editors["scene.unit_scale"]
+    combo.setEditText("-1")  # a designer's typo
+    combo.lineEdit().editingFinished.emit()
+    assert window.settings.scene.unit_scale == "auto"
+    assert "unit scale" in window.panel.status.text()
+    combo.setEditText("centimetres (0.01)")  # an entry's label means its value
+    combo.lineEdit().editingFinished.emit()
+    assert window.settings.scene.unit_scale == "0.01"
