@@ -82,8 +82,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 @pytest.fixture(autouse=True)
 def _data_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """User files (screenshots, viewpoints, recordings) of a test go to its tmp folder."""
+    """User files (screenshots, viewpoints, recordings, preferences) go to the test's tmp folder."""
     monkeypatch.setenv("VRPREVIEW_DATA", str(tmp_path / "data"))
+    # The window's preferences (ui/prefs.py) too: each test starts as a first run.
+    monkeypatch.setenv("VRPREVIEW_CONFIG", str(tmp_path / "config"))
 
 
 @pytest.fixture(autouse=True)
