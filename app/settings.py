@@ -66,6 +66,7 @@ def _opt(
     choice_labels: dict[str, str] | None = None,
     check: Any = None,
     range_text: str | None = None,
+    panel: str | None = None,
     hidden: bool = False,
 ) -> Any:
     """A setting's default and what the panels, the CLI and validation know about it.
@@ -77,8 +78,9 @@ def _opt(
     A float is shown with ``decimals`` and stepped by ``step``; ``scale`` multiplies the value
     for display (100: a fraction shown in per cent). ``check`` normalises a value or raises
     ``ValueError`` with the reason; ``range_text`` replaces the tooltip's range line (for a
-    number shown as named entries); ``hidden`` keeps a setting out of the panels (command line
-    and presets only).
+    number shown as named entries); ``panel`` names the section whose panel shows the control
+    when it is not the key's own (one control per setting); ``hidden`` keeps a setting out of
+    the panels (command line and presets only).
     """
     meta: dict[str, object] = {
         "help": help,
@@ -95,6 +97,7 @@ def _opt(
         "scale": scale,
         "check": check,
         "range_text": range_text,
+        "panel": panel,
         "choice_labels": dict(choice_labels) if choice_labels is not None else None,
     }
     meta.update({k: v for k, v in optional.items() if v is not None})
@@ -237,6 +240,7 @@ class RenderSettings:
         "the speed differs.",
         label="Lighting runs in",
         paper="CPS paper: lighting in a compute shader",
+        panel="cps",  # the CPS tab's mitigation modes set it too: its one control is there
         choices=("compute", "fragment"),
         choice_labels={
             "fragment": "Graphics pipeline (fragment shader)",
@@ -446,8 +450,8 @@ class TcrSettings:
     )
     f_m: float = _opt(
         1.0,
-        "Nearer than this, textures keep full detail; they lose a level at this distance "
-        "and again at 3, 7 and 15 times it.",
+        "Textures keep full detail up to twice this distance and lose one level at each "
+        "doubling beyond it (at 2, 4, 8 times it).",
         label="Eye-to-screen distance",
         unit="m",
         paper="TCR paper: eye-to-screen distance f",
@@ -469,8 +473,7 @@ class TcrSettings:
     )
     move_off: float = _opt(
         0.05,
-        "You count as still again once slower than this; the gap keeps textures from "
-        "flickering.",
+        "You count as still again once slower than this; the gap keeps textures from flickering.",
         label="Still below",
         unit="m/s",
         paper="TCR paper: viewpoint still",
@@ -560,8 +563,7 @@ class CpsSettings:
     )
     far_m: float = _opt(
         6.0,
-        "Where an edge of the view looks this far or into open space, that side keeps full "
-        "detail.",
+        "Where an edge of the view looks this far or into open space, that side keeps full detail.",
         label="Full detail when farther than",
         unit="m",
         paper="CPS paper: peripheral detail from edge rays",
@@ -661,8 +663,7 @@ class PhotonSettings:
     )
     radius_m: float = _opt(
         0.3,
-        "How far around each point photons are collected; larger is smoother but blurs "
-        "the light.",
+        "How far around each point photons are collected; larger is smoother but blurs the light.",
         label="Gather radius",
         unit="m",
         paper="Photon paper: gather radius r",
@@ -864,13 +865,17 @@ class Settings:
         )
 
     def shown_keys(self, section: str | None = None) -> list[str]:
-        """The keys the panels show (all but the hidden ones), of one section or all."""
-        return [
-            k
-            for k in self.keys()
-            if not self.describe(k).get("hidden")
-            and (section is None or k.split(".", 1)[0] == section)
-        ]
+        """The keys the panels show (all but the hidden ones), of one panel's section or all.
+
+        A key belongs to its own section's panel unless its metadata names another ``panel``.
+        """
+        out = []
+        for k in self.keys():
+            meta = self.describe(k)
+            home = str(meta.get("panel") or k.split(".", 1)[0])
+            if not meta.get("hidden") and (section is None or home == section):
+                out.append(k)
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

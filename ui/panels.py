@@ -4,8 +4,9 @@ Every panel builds its controls one way, with :class:`SettingsForm`: a dotted ke
 gives the control (check box for a bool, combo box for choices, an integer spin box for an int
 or a whole-number float, a decimal one with the setting's decimals otherwise, in its unit), its
 label and its tooltip (plain help, the paper's term and the range, wrapped), so a new setting
-appears in the panels, the CLI and presets at once, and no panel shows a key. Every edit goes through :meth:`SettingsForm.set`, which
-shows a value the model refuses in the panel's status line instead of raising in a Qt slot.
+appears in the panels, the CLI and presets at once, and no panel shows a key. Every edit goes
+through :meth:`SettingsForm.set`, which shows a value the model refuses in the panel's status
+line (named by its label) instead of raising in a Qt slot.
 Statistics are polled at 4 Hz.
 """
 

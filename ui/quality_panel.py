@@ -53,8 +53,7 @@ class QualityPanel(QWidget):
         layout = QVBoxLayout(self)
         self.button = QPushButton("Measure this frame against full quality (F9)")
         self.button.setToolTip(
-            "Draws this frame again at full quality and shows how far\n"
-            "the live picture is from it."
+            "Draws this frame again at full quality and shows how far\nthe live picture is from it."
         )
         self.button.clicked.connect(self.measure)
         layout.addWidget(self.button)

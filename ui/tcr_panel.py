@@ -123,6 +123,13 @@ class TcrPanel(QWidget):
         self.tint = self.form.add_row(form, "tcr.tint")
         layout.addWidget(box)
 
+        box = QGroupBox("Walking or standing")
+        form = QFormLayout(box)
+        self.move_on = self.form.add_row(form, "tcr.move_on")
+        self.move_off = self.form.add_row(form, "tcr.move_off")
+        self.window = self.form.add_row(form, "tcr.window_s")
+        layout.addWidget(box)
+
         legend = QGroupBox("Texture level colours")
         legend.setToolTip(
             "The tint each texture level gets when Tint objects by level\n"
