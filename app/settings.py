@@ -54,7 +54,7 @@ def _opt(
     default: Any,
     help: str,
     *,
-    label: str,
+    label: str | None = None,
     unit: str = "",
     paper: str | None = None,
     lo: float | None = None,
@@ -72,19 +72,19 @@ def _opt(
     """A setting's default and what the panels, the CLI and validation know about it.
 
     ``help`` is one plain sentence (the CLI's comment, the tooltip's first line); ``label``
-    names the control, ``unit`` is shown after its value and ``paper`` is the paper's term
-    for it ("TCR paper: distance term d"). ``lo``/``hi`` bound a number and ``choices`` a
-    string (both enforced by :meth:`Settings.set`); ``choice_labels`` names a choice's entry.
-    A float is shown with ``decimals`` and stepped by ``step``; ``scale`` multiplies the value
-    for display (100: a fraction shown in per cent). ``check`` normalises a value or raises
-    ``ValueError`` with the reason; ``range_text`` replaces the tooltip's range line (for a
-    number shown as named entries); ``panel`` names the section whose panel shows the control
-    when it is not the key's own (one control per setting); ``hidden`` keeps a setting out of
-    the panels (command line and presets only).
+    names the control in words (every setting has one: a test checks), ``unit`` is shown
+    after its value and ``paper`` is the paper's term for it ("TCR paper: distance term d").
+    ``lo``/``hi`` bound a number and ``choices`` a string (both enforced by
+    :meth:`Settings.set`); ``choice_labels`` names a choice's entry. A float is shown with
+    ``decimals`` and stepped by ``step``; ``scale`` multiplies the value for display (100: a
+    fraction shown in per cent). ``check`` normalises a value or raises ``ValueError`` with
+    the reason; ``range_text`` replaces the tooltip's range line (for a number shown as named
+    entries); ``panel`` names the section whose panel shows the control when it is not the
+    key's own (one control per setting); ``hidden`` keeps a setting out of the panels
+    (command line and presets only).
     """
     meta: dict[str, object] = {
         "help": help,
-        "label": label,
         "unit": unit,
         "lo": lo,
         "hi": hi,
@@ -96,6 +96,7 @@ def _opt(
         "step": step,
         "scale": scale,
         "check": check,
+        "label": label,
         "range_text": range_text,
         "panel": panel,
         "choice_labels": dict(choice_labels) if choice_labels is not None else None,
@@ -849,8 +850,15 @@ class Settings:
         return dict(f.metadata)
 
     def label(self, key: str) -> str:
-        """The control's name a panel shows (never the key)."""
-        return str(self.describe(key)["label"])
+        """The control's name a panel shows: the metadata's ``label``.
+
+        A setting without one (a new setting, say) falls back to its key's last part in
+        words, which tests/test_plain_language.py reports.
+        """
+        meta = self.describe(key)
+        if meta.get("label"):
+            return str(meta["label"])
+        return key.rsplit(".", 1)[-1].replace("_", " ").capitalize()
 
     def explain(self, key: str) -> str:
         """The tooltip: the plain sentence, the paper's term and the range, wrapped."""

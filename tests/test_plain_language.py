@@ -115,6 +115,7 @@ def test_every_setting_has_words_for_a_designer():
     raw = _raw_forms(s)
     for key in s.keys():
         meta = s.describe(key)
+        assert meta.get("label"), f"{key}: a setting needs a label in words"
         label, help_text = s.label(key), str(meta["help"])
         assert label and label[0].isupper() and "_" not in label and label not in raw, key
         assert help_text.endswith(".") and not KEY.search(help_text), key

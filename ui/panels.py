@@ -325,7 +325,10 @@ class EvaluationBar(QWidget):
     def refresh(self) -> None:
         info = self.poll()
         state = info.get("state", 0)
-        self.labels["phase"].setText(f"Texture rules: {info.get('phase', '')}")
+        phase = info.get("phase", "")
+        self.labels["phase"].setText(
+            "Adaptive textures: off" if phase == "TCR off" else f"Texture rules: {phase}"
+        )
         self.labels["state"].setText(f"State {state}: {self.STATE_NAMES.get(state, '')}")
         self.labels["resident"].setText(f"textures {info.get('resident_mb', 0.0):.2f} MB")
         self.labels["fps"].setText(f"{info.get('fps', 0.0):.1f} fps")
