@@ -259,6 +259,17 @@ def test_old_and_hidden_keys_still_work_on_the_command_line(tmp_path, capsys):
         s.set("render.brightness", -1)  # the CLI's errors still name the key
 
 
+def test_a_hidden_setting_from_a_preset_is_mentioned_in_the_settings_tab(qtbot):
+    s = Settings()
+    panel = SettingsPanel(s, SETTINGS_SECTIONS)
+    qtbot.addWidget(panel)
+    assert panel.hidden_note.isHidden()  # nothing set outside the panels
+    s.apply(["render.exposure=2"])
+    panel.refresh()  # as after loading a preset
+    assert not panel.hidden_note.isHidden()
+    assert panel.hidden_note.text() == "Also set on the command line or by a preset: Exposure 2×."
+
+
 def test_a_refused_value_is_named_by_its_label(qtbot):
     panel = SettingsPanel(Settings(), SETTINGS_SECTIONS)
     qtbot.addWidget(panel)

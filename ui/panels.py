@@ -267,9 +267,19 @@ class SettingsPanel(QScrollArea):
         self.settings = settings
         self.form = SettingsForm(settings, on_change)
         self.editors = self.form.editors
+        self.sections = sections
         body = QWidget()
         layout = QVBoxLayout(body)
         layout.addWidget(self.form.status)
+        # Settings with no control here (command line and presets only) say so when changed,
+        # so a preset's exposure never brightens the picture behind the user's back.
+        self.hidden_note = QLabel()
+        self.hidden_note.setWordWrap(True)
+        self.hidden_note.setToolTip(
+            "Settings that have no control in the panels, changed on the\n"
+            "command line or by a loaded preset."
+        )
+        layout.addWidget(self.hidden_note)
         for section in sections:
             box = QGroupBox(SECTION_TITLES.get(section, section.capitalize()))
             rows = QFormLayout(box)
@@ -279,6 +289,7 @@ class SettingsPanel(QScrollArea):
         layout.addStretch(1)
         self.setWidget(body)
         self.setWidgetResizable(True)
+        self._show_hidden()
 
     @property
     def on_change(self) -> Callable[[str], None] | None:
@@ -295,6 +306,29 @@ class SettingsPanel(QScrollArea):
     def refresh(self) -> None:
         """Show the model's values again (after a preset was loaded)."""
         self.form.refresh()
+        self._show_hidden()
+
+    def _show_hidden(self) -> None:
+        defaults = Settings()
+        changed = []
+        for key in self.settings.keys():
+            meta = self.settings.describe(key)
+            value = self.settings.get(key)
+            if not meta.get("hidden") or key.split(".", 1)[0] not in self.sections:
+                continue
+            if value == defaults.get(key):
+                continue
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                scale = float(meta.get("scale") or 1.0)
+                digits = 0 if shows_integer(meta, value) else int(meta.get("decimals", 2))
+                shown = with_unit(format_number(value * scale, digits), str(meta["unit"]))
+            else:
+                shown = str(value)
+            changed.append(f"{self.settings.label(key)} {shown}")
+        self.hidden_note.setText(
+            f"Also set on the command line or by a preset: {', '.join(changed)}." if changed else ""
+        )
+        self.hidden_note.setVisible(bool(changed))
 
 
 class EvaluationBar(QWidget):
