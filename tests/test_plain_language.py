@@ -158,6 +158,12 @@ def test_every_control_in_the_dock_explains_itself(window):
                 if "_" in plain or KEY.search(plain) or plain in raw:
                     problems.append(f"{tab_name}: a label shows a key: {plain!r}")
     assert controls > 50  # every tab was walked (about 60 controls today)
+    # The evaluation bar under the view: each figure says what it is.
+    window.eval_bar.refresh()
+    for name, label in window.eval_bar.labels.items():
+        problems += [f"bar / {name}: {p}" for p in _tooltip_problems(label.toolTip(), fm)]
+    assert window.eval_bar.labels["phase"].text() == "Adaptive textures: off"
+    assert window.eval_bar.labels["state"].text() == "State 0: standing, eyes wandering"
     assert not problems, "\n".join(problems)
 
 

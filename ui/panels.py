@@ -340,6 +340,15 @@ class EvaluationBar(QWidget):
         2: "standing, gaze fixed",
         3: "walking, gaze fixed",
     }
+    TIPS = {
+        "phase": "Which rules choose the texture detail (TCR tab).",
+        "state": "Walking or standing, eyes wandering or fixed: the TCR paper's\n"
+        "four states, drawn in the TCR tab.",
+        "fps": "Frames drawn per second.",
+        "resident": "Memory the textures take on the graphics card.",
+        "gazed": "The object under the cursor, which stands in for your gaze.",
+        "scene": "The model shown and its size in triangles.",
+    }
 
     def __init__(self, poll: Callable[[], dict], parent=None) -> None:
         super().__init__(parent)
@@ -350,6 +359,7 @@ class EvaluationBar(QWidget):
         self.labels = {name: QLabel() for name in names}
         for name in names:
             self.labels[name].setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+            self.labels[name].setToolTip(self.TIPS[name])
             layout.addWidget(self.labels[name])
             layout.addStretch(1)
         self.timer = QTimer(self)
