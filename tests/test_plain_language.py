@@ -74,8 +74,11 @@ def _raw_forms(settings: Settings) -> set[str]:
 
 
 def _dock_tabs(window: MainWindow) -> QTabWidget:
+    # The dock's tab widget, however it is wrapped (a scroll area, say).
     tabs = window.dock.widget()
-    assert isinstance(tabs, QTabWidget)
+    if not isinstance(tabs, QTabWidget):
+        tabs = window.dock.findChild(QTabWidget)
+    assert isinstance(tabs, QTabWidget) and tabs.count() >= 5
     return tabs
 
 
