@@ -2,7 +2,9 @@
 
 The panels, the CLI (``--set key=value``), saved presets and the benchmark all go through
 :func:`Settings.set` / :func:`Settings.get`, so a key means the same thing everywhere and every
-value is validated in one place.
+value is validated in one place. Each setting also carries the words a designer reads: its
+label, unit, one plain sentence of help and the paper's name for it (:meth:`Settings.explain`
+turns them into a tooltip), so the panels never show a key.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import dataclasses
 import json
 import math
 import os
+import textwrap
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,128 +22,482 @@ from app.fileio import atomic_write_json
 
 
 class SettingsError(ValueError):
-    """A key that does not exist, or a value that does not fit its key."""
+    """A key that does not exist, or a value that does not fit its key.
+
+    ``key`` is the setting concerned (None for a malformed assignment) and ``reason`` the
+    message without the key, for a panel that names the setting by its label instead.
+    """
+
+    def __init__(self, message: str, key: str | None = None, reason: str | None = None) -> None:
+        super().__init__(message)
+        self.key = key
+        self.reason = reason if reason is not None else message
+
+
+#: The words a panel shows for each section of settings.
+SECTION_TITLES = {
+    "stereo": "Stereo view",
+    "render": "Picture",
+    "navigation": "Walking",
+    "gaze": "Gaze",
+    "tcr": "Adaptive textures (TCR)",
+    "cps": "Coarse pixel shading (CPS)",
+    "photons": "Indirect light (photon mapping)",
+    "scene": "Model files",
+}
+
+#: Tooltip lines are wrapped to this many characters, so none runs off the screen.
+TOOLTIP_WIDTH = 60
 
 
 def _opt(
     default: Any,
     help: str,
     *,
+    label: str | None = None,
+    unit: str = "",
+    paper: str | None = None,
     lo: float | None = None,
     hi: float | None = None,
+    decimals: int | None = None,
+    step: float | None = None,
+    scale: float | None = None,
     choices: tuple[str, ...] | None = None,
-    label: str | None = None,
     choice_labels: dict[str, str] | None = None,
     check: Any = None,
+    range_text: str | None = None,
+    panel: str | None = None,
+    hidden: bool = False,
 ) -> Any:
     """A setting's default and what the panels, the CLI and validation know about it.
 
-    ``help`` is the CLI's comment and the panels' tooltip; ``lo``/``hi`` bound a number and
-    ``choices`` a string (both are enforced by :meth:`Settings.set`); ``label`` names the
-    control in a panel (default: the key's last part) and ``choice_labels`` a choice's entry;
-    ``check`` normalises a value or raises ``ValueError`` with the reason.
+    ``help`` is one plain sentence (the CLI's comment, the tooltip's first line); ``label``
+    names the control in words (every setting has one: a test checks), ``unit`` is shown
+    after its value and ``paper`` is the paper's term for it ("TCR paper: distance term d").
+    ``lo``/``hi`` bound a number and ``choices`` a string (both enforced by
+    :meth:`Settings.set`); ``choice_labels`` names a choice's entry. A float is shown with
+    ``decimals`` and stepped by ``step``; ``scale`` multiplies the value for display (100: a
+    fraction shown in per cent). ``check`` normalises a value or raises ``ValueError`` with
+    the reason; ``range_text`` replaces the tooltip's range line (for a number shown as named
+    entries); ``panel`` names the section whose panel shows the control when it is not the
+    key's own (one control per setting); ``hidden`` keeps a setting out of the panels
+    (command line and presets only).
     """
-    meta: dict[str, object] = {"help": help, "lo": lo, "hi": hi, "choices": choices}
-    if check is not None:
-        meta["check"] = check
-    if label is not None:
-        meta["label"] = label
-    if choice_labels is not None:
-        meta["choice_labels"] = dict(choice_labels)
+    meta: dict[str, object] = {
+        "help": help,
+        "unit": unit,
+        "lo": lo,
+        "hi": hi,
+        "choices": choices,
+    }
+    optional = {
+        "paper": paper,
+        "decimals": decimals,
+        "step": step,
+        "scale": scale,
+        "check": check,
+        "label": label,
+        "range_text": range_text,
+        "panel": panel,
+        "choice_labels": dict(choice_labels) if choice_labels is not None else None,
+    }
+    meta.update({k: v for k, v in optional.items() if v is not None})
+    if hidden:
+        meta["hidden"] = True
     return field(default=default, metadata=meta)
+
+
+def with_unit(number: str, unit: str) -> str:
+    """``"64 mm"``, ``"95°"``, ``"100%"``, ``"2×"``: a value and its unit as shown."""
+    if not unit:
+        return number
+    return f"{number}{unit}" if unit[0] in "°%×" else f"{number} {unit}"
+
+
+def format_number(value: float, decimals: int) -> str:
+    """``value`` with at most ``decimals`` decimals and thousands separators, no trailing 0s."""
+    text = f"{value:,.{max(0, decimals)}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return text
+
+
+def shown_range(meta: dict[str, Any], integer: bool) -> tuple[float | None, float | None]:
+    """The range a control offers: the model's bounds times ``scale``, rounded to what it shows.
+
+    The lower end is rounded up and the upper end down, so every value the control offers is
+    one the model accepts.
+    """
+    scale = float(meta.get("scale") or 1.0)
+    digits = 0 if integer else int(meta.get("decimals", 2))
+    step = 10.0**digits
+    lo, hi = meta.get("lo"), meta.get("hi")
+    return (
+        math.ceil(lo * scale * step - 1e-9) / step if lo is not None else None,
+        math.floor(hi * scale * step + 1e-9) / step if hi is not None else None,
+    )
+
+
+def shows_integer(meta: dict[str, Any], value: Any) -> bool:
+    """Whether a number's control shows whole numbers: an int, or a float with 0 decimals."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return isinstance(value, int) or meta.get("decimals") == 0
+
+
+def range_text(meta: dict[str, Any], value: Any) -> str:
+    """``"Range: 0 to 100 mm."`` for a number (as its control shows it), else ``""``."""
+    if meta.get("range_text"):
+        return str(meta["range_text"])
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or meta.get("choices"):
+        return ""
+    integer = shows_integer(meta, value)
+    lo, hi = shown_range(meta, integer)
+    digits = 0 if integer else int(meta.get("decimals", 2))
+    unit = str(meta.get("unit", ""))
+    if lo is None and hi is None:
+        return ""
+    if hi is None:
+        return f"At least {with_unit(format_number(lo or 0.0, digits), unit)}."
+    if lo is None:
+        return f"At most {with_unit(format_number(hi, digits), unit)}."
+    low = format_number(lo, digits)
+    return f"Range: {low} to {with_unit(format_number(hi, digits), unit)}."
+
+
+def wrap_tooltip(paragraphs: list[str], width: int = TOOLTIP_WIDTH) -> str:
+    """Plain-text lines of at most ``width`` characters, one paragraph after another."""
+    return "\n".join(textwrap.fill(p, width) for p in paragraphs if p)
 
 
 @dataclass
 class StereoSettings:
-    ipd_mm: float = _opt(64.0, "interpupillary distance (mm)", lo=0.0, hi=100.0)
-    fov_deg: float = _opt(95.0, "vertical field of view per eye (degrees)", lo=30.0, hi=130.0)
-    near_m: float = _opt(0.05, "near clipping plane (m)", lo=1e-4, hi=10.0)
-    far_m: float = _opt(200.0, "far clipping plane (m)", lo=1.0, hi=1e5)
-    convergence_m: float = _opt(2.0, "distance where the eyes' images coincide (m)", lo=0.1, hi=1e4)
+    ipd_mm: float = _opt(
+        64.0,
+        "How far apart the two eye cameras are; adults' eyes are about 54 to 74 mm apart.",
+        label="Distance between the eyes",
+        unit="mm",
+        lo=0.0,
+        hi=100.0,
+        decimals=1,
+        step=0.5,
+    )
+    fov_deg: float = _opt(
+        95.0,
+        "How much of the room each eye sees, from the top of the view to the bottom.",
+        label="Field of view",
+        unit="°",
+        lo=30.0,
+        hi=130.0,
+        decimals=0,
+        step=1.0,
+    )
+    near_m: float = _opt(
+        0.05,
+        "Anything closer to the eyes than this is not drawn.",
+        label="Nearest drawn distance",
+        unit="m",
+        lo=1e-4,
+        hi=10.0,
+        decimals=3,
+        step=0.01,
+    )
+    far_m: float = _opt(
+        200.0,
+        "Anything farther from the eyes than this is not drawn.",
+        label="Farthest drawn distance",
+        unit="m",
+        lo=1.0,
+        hi=1e5,
+        decimals=0,
+        step=10.0,
+    )
+    convergence_m: float = _opt(
+        2.0,
+        "Objects at this distance look the same in both eyes; nearer ones stand out of the "
+        "screen, farther ones sink behind it.",
+        label="Screen depth",
+        unit="m",
+        lo=0.1,
+        hi=1e4,
+        decimals=2,
+        step=0.1,
+    )
 
 
 @dataclass
 class RenderSettings:
-    path: str = _opt("deferred", "rendering path", choices=("deferred", "forward"))
+    path: str = _opt(
+        "deferred",
+        "Deferred lights the picture after drawing every surface and is needed for the "
+        "coarse shading modes; forward lights each object as it is drawn.",
+        label="Rendering method",
+        choices=("deferred", "forward"),
+        choice_labels={"deferred": "Deferred (every effect)", "forward": "Forward (simple)"},
+    )
     lighting: str = _opt(
         "compute",
-        "deferred lighting stage",
+        "Where the lighting of the deferred method is computed; the picture is the same, "
+        "the speed differs.",
+        label="Lighting runs in",
+        paper="CPS paper: lighting in a compute shader",
+        panel="cps",  # the CPS tab's mitigation modes set it too: its one control is there
         choices=("compute", "fragment"),
-        label="lighting stage",
         choice_labels={
-            "fragment": "Fragment (graphics pipeline)",
-            "compute": "Compute (the paper's)",
+            "fragment": "Graphics pipeline (fragment shader)",
+            "compute": "Compute shader (the CPS paper's)",
         },
     )
-    exposure: float = _opt(1.0, "exposure before tone mapping", lo=0.0, hi=64.0)
-    brightness: float = _opt(
-        1.0, "dimmer: scales every light and the ambient (1 = as authored)", lo=0.0, hi=16.0
+    # The one brightness the panels show is ``brightness`` (it dims the lights, so TCR's
+    # light term follows it); ``exposure`` stays for the command line and presets, and is
+    # the place for a later exposure in EV with its tone mapper.
+    exposure: float = _opt(
+        1.0,
+        "Multiplies the finished picture's light before it is mapped to the screen; "
+        "for the command line and presets, the panels show Brightness instead.",
+        label="Exposure",
+        unit="×",
+        lo=0.0,
+        hi=64.0,
+        decimals=2,
+        hidden=True,
     )
-    ambient: float = _opt(0.06, "constant ambient light", lo=0.0, hi=4.0)
-    overlay: bool = _opt(True, "draw the fps overlay in the view")
+    brightness: float = _opt(
+        1.0,
+        "Dims or brightens every light of the scene; 100% is as the model was made.",
+        label="Brightness",
+        unit="%",
+        paper="TCR paper: scene brightness, read by the light term l",
+        lo=0.0,
+        hi=16.0,
+        decimals=0,
+        step=5.0,
+        scale=100.0,
+    )
+    ambient: float = _opt(
+        0.06,
+        "Light that reaches every surface evenly, so shadows are never fully black.",
+        label="Ambient light",
+        lo=0.0,
+        hi=4.0,
+        decimals=2,
+        step=0.01,
+    )
+    overlay: bool = _opt(
+        True, "Draws the frames per second in a corner of the view.", label="Show frame rate"
+    )
     light_culling: bool = _opt(
         True,
-        "deferred, scenes with more than 8 lights: per 16x16 "
-        "tile, evaluate only the lights whose range reaches it",
+        "In scenes with more than 8 lights, each 16 by 16 pixel tile computes only the "
+        "lights that reach it: faster, the same picture.",
+        label="Skip lights out of reach",
     )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
-    anisotropy: float = _opt(1.0, "anisotropic texture filtering (1 = off)", lo=1.0, hi=16.0)
+    anisotropy: float = _opt(
+        1.0,
+        "Keeps floors and walls seen at a slant sharp; 1 means off.",
+        label="Sharpness at grazing angles",
+        unit="×",
+        lo=1.0,
+        hi=16.0,
+        decimals=0,
+        step=1.0,
+    )
 
 
 @dataclass
 class NavigationSettings:
-    walk_speed_mps: float = _opt(1.4, "walking speed (m/s)", lo=0.0, hi=50.0)
-    turn_deg_per_px: float = _opt(0.15, "mouse-drag look sensitivity (deg/pixel)", lo=0.0, hi=5.0)
-    eye_height_m: float = _opt(1.6, "eye height above the floor (m)", lo=0.1, hi=3.0)
-    radius_m: float = _opt(0.25, "body radius for collision (m)", lo=0.0, hi=2.0)
-    collision: bool = _opt(True, "stop at walls")
+    walk_speed_mps: float = _opt(
+        1.4,
+        "How fast the W, A, S, D and arrow keys move you.",
+        label="Walking speed",
+        unit="m/s",
+        lo=0.0,
+        hi=50.0,
+        decimals=1,
+        step=0.1,
+    )
+    turn_deg_per_px: float = _opt(
+        0.15,
+        "How far the view turns for each pixel the mouse is dragged.",
+        label="Look sensitivity",
+        unit="° per pixel",
+        lo=0.0,
+        hi=5.0,
+        decimals=2,
+        step=0.01,
+    )
+    eye_height_m: float = _opt(
+        1.6,
+        "Height of the eyes above the floor while walking.",
+        label="Eye height",
+        unit="m",
+        lo=0.1,
+        hi=3.0,
+        decimals=2,
+        step=0.05,
+    )
+    radius_m: float = _opt(
+        0.25,
+        "How close to a wall you can walk: the radius of your body.",
+        label="Body radius",
+        unit="m",
+        lo=0.0,
+        hi=2.0,
+        decimals=2,
+        step=0.05,
+    )
+    collision: bool = _opt(
+        True, "You cannot walk through walls and furniture.", label="Walls stop you"
+    )
     fly: bool = _opt(
-        False, "fly freely instead of walking on the floor (no floor following; collision optional)"
+        False,
+        "Move freely up and down instead of walking on the floor; walls stop you only if "
+        "that is on too.",
+        label="Fly",
     )
 
 
 @dataclass
 class GazeSettings:
-    dwell: bool = _opt(False, "a cursor held still also fixes the gaze")
-    dwell_deg: float = _opt(
-        1.5, "dwell: largest cursor motion still counted as still (deg)", lo=0.0, hi=30.0
+    dwell: bool = _opt(
+        False,
+        "Holding the mouse still also counts as looking steadily at one point, as holding "
+        "a mouse button does.",
+        label="A still cursor fixes the gaze",
+        paper="TCR paper: gaze fixed",
     )
-    dwell_s: float = _opt(0.4, "dwell: how long the cursor must stay still (s)", lo=0.0, hi=10.0)
+    dwell_deg: float = _opt(
+        1.5,
+        "How far the cursor may drift and still count as held still.",
+        label="Stillness tolerance",
+        unit="°",
+        lo=0.0,
+        hi=30.0,
+        decimals=1,
+        step=0.5,
+    )
+    dwell_s: float = _opt(
+        0.4,
+        "How long the cursor must stay still before the gaze counts as fixed.",
+        label="Stillness time",
+        unit="s",
+        lo=0.0,
+        hi=10.0,
+        decimals=2,
+        step=0.1,
+    )
 
 
 @dataclass
 class TcrSettings:
     """Adaptive texture mapping (TCR paper): which terms choose each object's pyramid level."""
 
-    enabled: bool = _opt(False, "adapt texture levels per object (off: full quality)", label="TCR")
+    enabled: bool = _opt(
+        False,
+        "Lowers texture detail where a viewer would not notice; off shows every texture at "
+        "full detail.",
+        label="Adaptive textures",
+        paper="TCR paper: texture level per object",
+    )
     preset: str = _opt(
         "ergonomics",
-        "term set: psychology (d,g,l), ergonomics (d,v,l) or custom",
+        "Which rules choose each object's texture detail: the paper's psychology or "
+        "ergonomics set, or your own choice below.",
+        label="Rules",
+        paper="TCR paper: psychology and ergonomics phases",
         choices=("psychology", "ergonomics", "custom"),
-        label="preset",
+        choice_labels={
+            "psychology": "Psychology: distance, gaze, light",
+            "ergonomics": "Ergonomics: distance, motion, light",
+            "custom": "Custom: the rules ticked below",
+        },
     )
-    use_d: bool = _opt(True, "custom: distance term d")
-    use_v: bool = _opt(True, "custom: viewpoint-motion term v (+1 while moving)")
-    use_g: bool = _opt(False, "custom: gaze term g (-1 on the gazed object while fixed)")
-    use_l: bool = _opt(True, "custom: brightness term l (+1 per halving)")
+    use_d: bool = _opt(
+        True,
+        "Farther objects get coarser textures, one level per doubling of distance.",
+        label="Distance",
+        paper="TCR paper: distance term d",
+    )
+    use_v: bool = _opt(
+        True,
+        "While you move, every texture is one level coarser.",
+        label="Motion",
+        paper="TCR paper: viewpoint-motion term v",
+    )
+    use_g: bool = _opt(
+        False,
+        "The object you look at steadily gets one level finer.",
+        label="Gaze",
+        paper="TCR paper: gaze term g",
+    )
+    use_l: bool = _opt(
+        True,
+        "In dim light textures get one level coarser per halving of the brightness.",
+        label="Dim light",
+        paper="TCR paper: brightness term l",
+    )
     mode: str = _opt(
         "clamp",
-        "paper: sample exactly level j; clamp: mipmapping, finest level j",
+        "How the chosen detail level is drawn: exactly that level, or smoothly with the "
+        "finer levels left out.",
+        label="Texture filtering",
+        paper="TCR paper: sampling one pyramid level",
         choices=("paper", "clamp"),
-        label="sampling",
-        choice_labels={"paper": "paper (exactly level j)", "clamp": "clamp (mipmapping)"},
+        choice_labels={
+            "paper": "Exactly the chosen level (paper)",
+            "clamp": "Smooth (mipmaps from that level)",
+        },
     )
     f_m: float = _opt(
         1.0,
-        "eye-to-screen distance f in j = floor(log2((d+f)/f)) (m)",
+        "Textures keep full detail up to twice this distance and lose one level at each "
+        "doubling beyond it (at 2, 4, 8 times it).",
+        label="Eye-to-screen distance",
+        unit="m",
+        paper="TCR paper: eye-to-screen distance f",
         lo=1e-6,
         hi=100.0,
-        label="eye-screen f (m)",
+        decimals=2,
+        step=0.1,
     )
-    move_on: float = _opt(0.15, "viewpoint counts as moving above this speed", lo=0.0, hi=100.0)
-    move_off: float = _opt(0.05, "... and as still again below this speed", lo=0.0, hi=100.0)
-    window_s: float = _opt(0.15, "a state change must persist this long (s)", lo=0.0, hi=5.0)
-    tint: bool = _opt(False, "tint every object by its texture level", label="overlay")
+    move_on: float = _opt(
+        0.15,
+        "You count as moving once faster than this (turning 30° a second counts as 1 m/s).",
+        label="Moving above",
+        unit="m/s",
+        paper="TCR paper: viewpoint moving",
+        lo=0.0,
+        hi=100.0,
+        decimals=2,
+        step=0.05,
+    )
+    move_off: float = _opt(
+        0.05,
+        "You count as still again once slower than this; the gap keeps textures from flickering.",
+        label="Still below",
+        unit="m/s",
+        paper="TCR paper: viewpoint still",
+        lo=0.0,
+        hi=100.0,
+        decimals=2,
+        step=0.05,
+    )
+    window_s: float = _opt(
+        0.15,
+        "A change between moving and still must last this long before textures follow.",
+        label="Change delay",
+        unit="s",
+        lo=0.0,
+        hi=5.0,
+        decimals=2,
+        step=0.05,
+    )
+    tint: bool = _opt(
+        False,
+        "Colours every object by its texture level, as in the legend below.",
+        label="Tint objects by level",
+    )
 
 
 @dataclass
@@ -149,65 +506,100 @@ class CpsSettings:
 
     mode: str = _opt(
         "none",
-        "mitigation: none (full-rate lighting), black-mask or blur-mask "
-        "(periphery darkened / blurred where detail would drop) or cps (coarse "
-        "shading there); the lighting runs where render.lighting says (compute "
-        "is the paper's, fragment keeps it in the graphics pipeline); deferred "
-        "path only",
+        "How the edges of the view are calmed against VR sickness: not at all, darkened, "
+        "blurred, or lit more coarsely (deferred method only).",
+        label="Mitigation",
+        paper="CPS paper: the mitigation modes",
         choices=("none", "black-mask", "blur-mask", "cps"),
-        label="mode",
+        choice_labels={
+            "none": "None",
+            "black-mask": "Black mask (darkened edges)",
+            "blur-mask": "Blur mask (blurred edges)",
+            "cps": "Coarse pixel shading",
+        },
     )
     max_level: int = _opt(
         4,
-        "coarsest block allowed: 2^max_level pixels square (0-5)",
+        "The largest square of pixels that may share one lighting result (level 0 is one "
+        "pixel, level 5 is 32 by 32 pixels).",
+        label="Coarsest block",
+        paper="CPS paper: detail level s",
         lo=0,
         hi=5,
-        label="coarsest block",
+        range_text="From 1×1 to 32×32 pixels.",
     )
     fovea_deg: float = _opt(
         10.0,
-        "full detail within this angle of the gaze (degrees)",
+        "Within this angle of where you look, every pixel is lit in full.",
+        label="Sharp area around the gaze",
+        unit="°",
+        paper="CPS paper: angle from the gaze point",
         lo=0.0,
         hi=180.0,
-        label="fovea radius",
+        decimals=1,
+        step=1.0,
     )
     deg_per_level: float = _opt(
         6.0,
-        "falloff: one level coarser per this many degrees beyond the fovea",
+        "Beyond the sharp area, blocks double in size every this many degrees.",
+        label="Detail falloff",
+        unit="° per level",
+        paper="CPS paper: detail falls with the angle from the gaze",
         lo=0.1,
         hi=180.0,
-        label="falloff",
+        decimals=1,
+        step=1.0,
     )
     near_m: float = _opt(
         1.0,
-        "edge ray hit this near or nearer: that side may go to max_level (m)",
+        "Where an edge of the view is this close to a surface, that side may use the "
+        "coarsest blocks.",
+        label="Coarsest when nearer than",
+        unit="m",
+        paper="CPS paper: peripheral detail from edge rays",
         lo=0.0,
         hi=1000.0,
-        label="near (coarsest)",
+        decimals=2,
+        step=0.25,
     )
     far_m: float = _opt(
         6.0,
-        "edge ray hit this far or farther (or none): no reduction on that side (m)",
+        "Where an edge of the view looks this far or into open space, that side keeps full detail.",
+        label="Full detail when farther than",
+        unit="m",
+        paper="CPS paper: peripheral detail from edge rays",
         lo=0.0,
         hi=1000.0,
-        label="far (no reduction)",
+        decimals=2,
+        step=0.25,
     )
     rays_per_side: int = _opt(
-        5, "edge rays per side (left, right, bottom) and eye", lo=1, hi=64, label="rays per side"
+        5,
+        "Rays cast along the left, right and bottom edge of each eye to measure how near "
+        "the surroundings are.",
+        label="Edge test rays",
+        unit="per side",
+        paper="CPS paper: edge rays",
+        lo=1,
+        hi=64,
+        step=1.0,
     )
     dispatch: str = _opt(
         "multi",
-        "compute: one dispatch per level (multi) or one in which a "
-        "thread owns a 32x32 tile (single)",
+        "How the compute shader's work is split: one pass per detail level, or one pass "
+        "over 32 by 32 pixel tiles; the picture is the same.",
+        label="Compute passes",
+        paper="CPS paper: multi-level against single dispatch",
         choices=("multi", "single"),
-        label="dispatch",
-        choice_labels={"multi": "One dispatch per level", "single": "Single dispatch, 32x32 tiles"},
+        choice_labels={"multi": "One pass per level", "single": "One pass, 32×32 tiles"},
     )
     filter: str = _opt(
         "hierarchical",
-        "reconstruction of coarse blocks: none, bilinear (ordinary) or hierarchical (the paper's)",
+        "How coarse blocks are blended into the picture: flat blocks, ordinary bilinear, "
+        "or the paper's hierarchical bilinear.",
+        label="Block smoothing",
+        paper="CPS paper: hierarchical bilinear filter, section 3.2.2",
         choices=("none", "bilinear", "hierarchical"),
-        label="filter",
         choice_labels={
             "none": "None (flat blocks)",
             "bilinear": "Bilinear",
@@ -216,28 +608,33 @@ class CpsSettings:
     )
     temporal: bool = _opt(
         False,
-        "alternating temporal filter: the eyes swap strong and weak "
-        "reduction each frame and blend with their previous frame",
-        label="temporal",
+        "Each frame one eye gets strong reduction and the other weak, swapping every frame, "
+        "blended with the frame before.",
+        label="Alternate the eyes",
+        paper="CPS paper: alternating temporal filter, section 3.2.1",
     )
     reproject: bool = _opt(
         True,
-        "temporal: reproject the history with depth and the previous "
-        "camera, rejecting disocclusions",
-        label="history",
+        "Moves the frame before to the current viewpoint before blending, and drops what "
+        "was hidden from it.",
+        label="Follow head motion",
     )
     history_weight: float = _opt(
         0.7,
-        "temporal: weight of the finer of the two images when blending (0.5-1)",
+        "When the two frames are blended, how much the finer one counts.",
+        label="Weight of the finer frame",
+        paper="CPS paper: the finer image weighs more",
         lo=0.5,
         hi=1.0,
-        label="finer image weight",
+        decimals=2,
+        step=0.05,
     )
     visualize: bool = _opt(
         False,
-        "tint pixels by detail level (finest unpainted, then blue, "
-        "cyan, green, yellow, red) and mark the edge-ray hits",
-        label="detail visualisation",
+        "Tints pixels by their block size, as in the legend below, and marks where the "
+        "edge rays hit.",
+        label="Show detail levels",
+        paper="CPS paper: detail visualisation, Figure 2",
     )
 
 
@@ -247,47 +644,108 @@ class PhotonSettings:
 
     enabled: str = _opt(
         "scene",
-        "indirect light from a photon map: scene (only where the scene asks for it), on or off",
+        "Light bounced off walls and furniture, from a photon map: on, off, or only where "
+        "the scene asks for it.",
+        label="Indirect light",
+        paper="Photon paper: photon mapping",
         choices=("scene", "on", "off"),
+        choice_labels={"scene": "As the scene asks", "on": "On", "off": "Off"},
     )
     photons: int = _opt(
         65536,
-        "photon paths emitted from the lights (the paper: 128^2 = 16384, "
-        "256^2 = 65536, 512^2 = 262144)",
+        "How many light paths are traced from the lights; more is smoother and slower "
+        "(the paper uses 16,384 to 262,144).",
+        label="Photons",
+        unit="photons",
+        paper="Photon paper: photon count",
         lo=0,
         hi=1 << 22,
+        step=4096.0,
     )
-    radius_m: float = _opt(0.3, "gather radius r (m)", lo=1e-3, hi=100.0)
+    radius_m: float = _opt(
+        0.3,
+        "How far around each point photons are collected; larger is smoother but blurs the light.",
+        label="Gather radius",
+        unit="m",
+        paper="Photon paper: gather radius r",
+        lo=1e-3,
+        hi=100.0,
+        decimals=3,
+        step=0.05,
+    )
     gather: str = _opt(
         "radius",
-        "radius (hash grid, cell r, no heap: the paper's default), "
-        "radius-half (cell r/2, 5x5x5), heap (k nearest), kdtree, kdtree-heap, "
-        "shared (cooperative shared-memory gather, paper Algorithm 1)",
+        "How the photons near a point are found; all give nearly the same light at "
+        "different speeds.",
+        label="Photon search",
+        paper="Photon paper: hash grid, tree and nearest-photon gathers",
         choices=("radius", "radius-half", "heap", "kdtree", "kdtree-heap", "shared"),
+        choice_labels={
+            "radius": "Grid, cell = radius (paper default)",
+            "radius-half": "Grid, cell = half the radius",
+            "heap": "Nearest photons only",
+            "kdtree": "Tree search",
+            "kdtree-heap": "Tree search, nearest photons only",
+            "shared": "Cooperative, shared memory (Algorithm 1)",
+        },
     )
-    k: int = _opt(32, "heap variants: nearest photons kept", lo=1, hi=64)
+    k: int = _opt(
+        32,
+        "For the searches that keep only the nearest photons: how many each point keeps.",
+        label="Nearest photons kept",
+        unit="photons",
+        paper="Photon paper: k nearest photons",
+        lo=1,
+        hi=64,
+        step=1.0,
+    )
     fused: bool = _opt(
         False,
-        "gather inside the lighting shader (one kernel: the paper's "
-        "'single' scheme, no stereo reuse; shared gathers as radius there) "
-        "instead of a separate pass before it (its 'hybrid' scheme)",
+        "Collects photons inside the lighting step, in one pass, instead of in a pass of "
+        "its own before it.",
+        label="Collect while lighting",
+        paper="Photon paper: single scheme, not hybrid",
     )
     stereo_reuse: bool = _opt(
         True,
-        "gather the left eye first and reuse its results at the "
-        "right-eye pixels that see the same points",
+        "Collects photons for the left eye first and reuses them where the right eye sees "
+        "the same points.",
+        label="Reuse the left eye for the right",
+        paper="Photon paper: stereo reuse, section 3.3",
     )
     reuse_tolerance: float = _opt(
         0.01,
-        "stereo reuse: largest distance between the left hit "
-        "and the right pixel's point, relative to its depth",
+        "How far apart the two eyes' points may be, relative to their distance, and still "
+        "count as the same point.",
+        label="Reuse tolerance",
+        unit="% of distance",
         lo=0.0,
         hi=1.0,
+        decimals=1,
+        step=0.5,
+        scale=100.0,
     )
-    max_bounces: int = _opt(8, "longest photon path (bounces)", lo=1, hi=64)
-    seed: int = _opt(0, "random seed of the photon tracer", lo=0, hi=2**31 - 1)
+    max_bounces: int = _opt(
+        8,
+        "How many times a photon may bounce before it stops.",
+        label="Bounces per photon",
+        unit="bounces",
+        lo=1,
+        hi=64,
+        step=1.0,
+    )
+    seed: int = _opt(
+        0,
+        "Changes the random pattern of the photons; the same number gives the same picture.",
+        label="Random seed",
+        lo=0,
+        hi=2**31 - 1,
+        step=1.0,
+    )
     show_reuse: bool = _opt(
-        False, "paint right-eye pixels reused from the left eye green and gathered ones red"
+        False,
+        "Paints right-eye pixels reused from the left eye green and newly collected ones red.",
+        label="Show reused pixels",
     )
 
 
@@ -308,32 +766,36 @@ class SceneSettings:
 
     unit_scale: str = _opt(
         "auto",
-        "metres per file unit: auto (trust the file, warn if the room is implausible), "
-        "or a factor such as 0.01 for centimetres or 0.0254 for inches",
-        label="units (m per unit)",
+        "How many metres one unit of the model file is: as the file says (with a warning "
+        "if the room looks implausible), or a number such as 0.01 for centimetres.",
+        label="Model units",
         check=_unit_scale,
         choice_labels={
-            "auto": "auto (as the file says)",
-            "1.0": "metres (1)",
-            "0.01": "centimetres (0.01)",
-            "0.001": "millimetres (0.001)",
-            "0.0254": "inches (0.0254)",
-            "0.3048": "feet (0.3048)",
+            "auto": "As the file says",
+            "1.0": "Metres (1)",
+            "0.01": "Centimetres (0.01)",
+            "0.001": "Millimetres (0.001)",
+            "0.0254": "Inches (0.0254)",
+            "0.3048": "Feet (0.3048)",
         },
     )
     max_texture_px: int = _opt(
         8192,
-        "textures larger than this on their longest side are downscaled when loading",
+        "Textures bigger than this on their longest side are scaled down when loading.",
+        label="Largest texture",
+        unit="pixels",
         lo=16,
         hi=65536,
-        label="largest texture (px)",
+        step=1024.0,
     )
     max_memory_mb: int = _opt(
         8192,
-        "a file whose geometry and textures would need more memory than this is refused",
+        "A model whose geometry and textures would need more memory than this is refused.",
+        label="Memory limit per model",
+        unit="MB",
         lo=64,
         hi=1 << 20,
-        label="memory limit per load (MB)",
+        step=1024.0,
     )
 
 
@@ -386,6 +848,42 @@ class Settings:
     def describe(self, key: str) -> dict[str, Any]:
         _node, f = self._locate(key)
         return dict(f.metadata)
+
+    def label(self, key: str) -> str:
+        """The control's name a panel shows: the metadata's ``label``.
+
+        A setting without one (a new setting, say) falls back to its key's last part in
+        words, which tests/test_plain_language.py reports.
+        """
+        meta = self.describe(key)
+        if meta.get("label"):
+            return str(meta["label"])
+        return key.rsplit(".", 1)[-1].replace("_", " ").capitalize()
+
+    def explain(self, key: str) -> str:
+        """The tooltip: the plain sentence, the paper's term and the range, wrapped."""
+        meta = self.describe(key)
+        paper = str(meta.get("paper", ""))
+        return wrap_tooltip(
+            [
+                str(meta["help"]),
+                f"{paper}." if paper else "",
+                range_text(meta, self.get(key)),
+            ]
+        )
+
+    def shown_keys(self, section: str | None = None) -> list[str]:
+        """The keys the panels show (all but the hidden ones), of one panel's section or all.
+
+        A key belongs to its own section's panel unless its metadata names another ``panel``.
+        """
+        out = []
+        for k in self.keys():
+            meta = self.describe(k)
+            home = str(meta.get("panel") or k.split(".", 1)[0])
+            if not meta.get("hidden") and (section is None or home == section):
+                out.append(k)
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -457,10 +955,13 @@ def _coerce(key: str, f: dataclasses.Field[Any], current: Any, value: Any) -> An
         if meta.get("check") is not None:
             out = meta["check"](out)
     except (TypeError, ValueError) as exc:
-        raise SettingsError(f"{key}: cannot use {value!r} ({exc})") from exc
+        reason = f"cannot use {value!r} ({exc})"
+        raise SettingsError(f"{key}: {reason}", key, reason) from exc
     if meta.get("choices") and out not in meta["choices"]:
-        raise SettingsError(f"{key}: {out!r} is not one of {', '.join(meta['choices'])}")
+        reason = f"{out!r} is not one of {', '.join(meta['choices'])}"
+        raise SettingsError(f"{key}: {reason}", key, reason)
     lo, hi = meta.get("lo"), meta.get("hi")
     if lo is not None and out < lo or hi is not None and out > hi:
-        raise SettingsError(f"{key}: {out} is outside [{lo}, {hi}]")
+        reason = f"{out} is outside [{lo}, {hi}]"
+        raise SettingsError(f"{key}: {reason}", key, reason)
     return out

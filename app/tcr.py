@@ -293,6 +293,29 @@ class LevelReason:
             f"- g {-self.g} + l {self.l}, clamped to [0, {self.n}]"
         )
 
+    def plain(self, name: str) -> str:
+        """The panel's readout, in words: the level, then each rule's share.
+
+        ``"sofa: texture level 4 of 9 (0 is full detail) from distance +3, motion +1,
+        gaze +0, dim light +0"``; a share too large to matter reads "coarsest".
+        """
+
+        def share(term: int) -> str:
+            return "coarsest" if term >= FAR_LEVEL else f"{term:+d}"
+
+        if self.n == 0:
+            return f"{name}: full texture detail (its texture has no coarser levels)"
+        text = (
+            f"{name}: texture level {self.level} of {self.n} (0 is full detail) from "
+            f"distance {share(self.distance)}, motion {share(self.v)}, "
+            f"gaze {share(self.g)}, dim light {share(self.l)}"
+        )
+        if self.raw > self.n:
+            text += f"; {self.n} is its coarsest"
+        elif self.raw < 0:
+            text += "; 0 is its finest"
+        return text
+
 
 def level_for(
     distance_m: float,

@@ -151,7 +151,7 @@ def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, 
     assert b > r + 40, (r, g, b)  # level 1's legend colour is blue
 
     # Psychology: the held gaze on the quad takes one level off (1 -> 0: not tinted).
-    panel.preset.setCurrentText("psychology")
+    panel.preset.setCurrentIndex(panel.preset.findData("psychology"))
     assert s.tcr.preset == "psychology"
     assert [panel.terms[t].isChecked() for t in "dvgl"] == [True, False, True, True]
     pos = QPoint(VIEW_W // 4, VIEW_H // 2)
@@ -160,24 +160,26 @@ def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, 
     r, g, b = gazed[white].astype(int)
     assert abs(b - r) < 30, (r, g, b)  # the white quadrant, untinted
     # Ergonomics ignores the gaze: back to level 1.
-    panel.preset.setCurrentText("ergonomics")
+    panel.preset.setCurrentIndex(panel.preset.findData("ergonomics"))
     shot_after(1)
     send_mouse(window.view, QMouseEvent.Type.MouseButtonRelease, pos, Qt.MouseButton.LeftButton)
 
-    # Editing a term of a preset makes a custom set; the dimmer feeds l and darkens the scene.
+    # Editing a term of a preset makes a custom set; Brightness (the Settings tab's one
+    # control) feeds l and darkens the scene.
     panel.terms["v"].setChecked(False)
     assert s.tcr.preset == "custom" and not s.tcr.use_v and s.tcr.use_d and s.tcr.use_l
-    assert panel.preset.currentText() == "custom"
+    assert panel.preset.currentData() == "custom"
     panel.tint.setChecked(False)
     bright = shot_after(1)
-    panel.dimmer.setValue(50)  # half the brightness: l = +1
+    brightness = window.panel.editors["render.brightness"]
+    brightness.setValue(50)  # 50%, half the brightness: l = +1
     assert s.render.brightness == pytest.approx(0.5)
     dim = shot_after(2)  # = n, the 4x4 texture's coarsest level
     assert np.abs(dim.astype(int) - bright.astype(int)).mean() > 5
     panel.enabled.setChecked(False)
     assert not s.tcr.enabled
     dim_full = shot_after(0)
-    panel.dimmer.setValue(100)
+    brightness.setValue(100)
     bright_full = shot_after(0)
     quad = (slice(VIEW_H // 2 - 50, VIEW_H // 2 + 50), slice(VIEW_W // 4 - 50, VIEW_W // 4 + 50))
     # Half the light: the quad is darker by 15+ of 255 levels everywhere on average (the tone
@@ -238,7 +240,8 @@ def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, q
     before = grab(window)
     panel.controls.editors["photons.photons"].setValue(4096)
     panel.controls.editors["photons.radius_m"].setValue(0.4)
-    panel.controls.editors["photons.enabled"].setCurrentText("on")
+    enabled = panel.controls.editors["photons.enabled"]
+    enabled.setCurrentIndex(enabled.findData("on"))
     assert s.photons.enabled == "on" and s.photons.photons == 4096
     qtbot.waitUntil(lambda: window.photon_cache.map is not None, timeout=20000)
     window._check_photons()  # hand the map to the view now rather than on the next tick
@@ -262,7 +265,7 @@ def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, q
     grab(window)
     panel.refresh_stats()
     assert "cells" in panel.labels["status"].text()
-    panel.controls.editors["photons.enabled"].setCurrentText("off")
+    enabled.setCurrentIndex(enabled.findData("off"))
     qtbot.waitUntil(lambda: window._photons_shown is None, timeout=5000)
     assert np.abs(grab(window).astype(int) - before.astype(int)).mean() < 0.5
 

@@ -40,17 +40,24 @@ def test_controls_come_from_the_metadata(settings, qtbot):
     form = SettingsForm(settings)
     ipd = form.control("stereo.ipd_mm")
     assert isinstance(ipd, QDoubleSpinBox) and (ipd.minimum(), ipd.maximum()) == (0.0, 100.0)
-    assert ipd.toolTip() == settings.describe("stereo.ipd_mm")["help"]
+    assert ipd.toolTip() == settings.explain("stereo.ipd_mm")
+    assert ipd.toolTip().startswith("How far apart the two eye cameras are")
+    assert ipd.suffix() == " mm" and ipd.decimals() == 1
     assert isinstance(form.control("cps.rays_per_side"), QSpinBox)
     assert isinstance(form.control("render.overlay"), QCheckBox)
     lighting = form.control("render.lighting")
     assert isinstance(lighting, QComboBox)
     assert [lighting.itemData(i) for i in range(lighting.count())] == ["compute", "fragment"]
-    assert lighting.currentText() == "Compute (the paper's)"  # the choice's label
-    f = form.control("tcr.f_m", decimals=2)
+    assert lighting.currentText() == "Compute shader (the CPS paper's)"  # the choice's label
+    f = form.control("tcr.f_m")
     assert f.minimum() == pytest.approx(0.01)  # the model's 1e-6, rounded up to what it shows
-    assert setting_label(settings, "tcr.f_m") == "eye-screen f (m)"
-    assert setting_label(settings, "stereo.ipd_mm") == "ipd mm"
+    assert setting_label(settings, "tcr.f_m") == "Eye-to-screen distance"
+    assert setting_label(settings, "stereo.ipd_mm") == "Distance between the eyes"
+    # A fraction shown in per cent, in whole numbers: brightness 1.0 is "100%".
+    brightness = form.control("render.brightness")
+    assert isinstance(brightness, QSpinBox) and brightness.text() == "100%"
+    brightness.setValue(50)
+    assert settings.render.brightness == pytest.approx(0.5)
 
 
 def test_cps_levels_follow_the_model(settings, qtbot):
@@ -66,7 +73,7 @@ def test_cps_levels_follow_the_model(settings, qtbot):
         ("settings", lambda p: p.editors["stereo.ipd_mm"], "stereo.ipd_mm", -5.0),
         ("settings", lambda p: p.editors["render.path"], "render.path", -1),
         ("tcr", lambda p: p.f, "tcr.f_m", 1e9),
-        ("tcr", lambda p: p.dimmer, "render.brightness", -50),
+        ("settings", lambda p: p.editors["render.brightness"], "render.brightness", -50),
         ("tcr", lambda p: p.mode, "tcr.mode", -1),
         ("cps", lambda p: p.fovea, "cps.fovea_deg", -1.0),
         ("cps", lambda p: p.max_level, "cps.max_level", -1),
@@ -83,7 +90,9 @@ def test_a_refused_value_is_shown_and_does_not_raise(settings, qtbot, name, cont
     signal = w.currentIndexChanged if isinstance(w, QComboBox) else w.valueChanged
     signal.emit(bad)
     status = panel.form.status if hasattr(panel, "form") else panel.controls.status
-    assert not status.isHidden() and key in status.text()
+    # Named by its label, not its key.
+    assert not status.isHidden() and settings.label(key) in status.text()
+    assert key not in status.text()
     assert settings.get(key) == before and changes == []
     if isinstance(w, QComboBox):
         assert w.currentData() == before  # the control shows the model's value again

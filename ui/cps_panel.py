@@ -36,12 +36,19 @@ log = logging.getLogger(__name__)
 LEVELS = MAX_LEVEL + 1  # s = 0..MAX_LEVEL: blocks of 1x1 .. 32x32 pixels
 #: The mitigation control: (cps.mode, lighting stage or None for "as it is"), label.
 MITIGATIONS = (
-    (("none", "fragment"), "None, fragment shader (the baseline)"),
+    (("none", "fragment"), "None, graphics pipeline (the baseline)"),
     (("none", "compute"), "None, compute shader"),
-    (("black-mask", None), "Black mask (darkened periphery)"),
-    (("blur-mask", None), "Blur mask (blurred periphery)"),
+    (("black-mask", None), "Black mask (darkened edges)"),
+    (("blur-mask", None), "Blur mask (blurred edges)"),
     (("cps", "fragment"), "Coarse pixel shading, graphics pipeline"),
     (("cps", "compute"), "Coarse pixel shading, compute (the paper's)"),
+)
+MITIGATION_TIP = (
+    "How the edges of the view are calmed against VR sickness: not at\n"
+    "all, darkened, blurred, or lit more coarsely where surfaces are\n"
+    "near. The first and last two also choose where the lighting\n"
+    "runs. Deferred rendering method only.\n"
+    "CPS paper: the comparisons of Table 1."
 )
 #: Where the lighting runs: CPS follows the deferred lighting stage.
 PIPELINE_KEY = "render.lighting"
@@ -52,7 +59,7 @@ NONE = "-"  # shown for a statistic the renderer did not report
 
 def block_label(level: int) -> str:
     n = 1 << level
-    return f"{n}x{n}"
+    return f"{n}×{n}"
 
 
 def _qcolor(rgb: Sequence[float]) -> QColor:
@@ -127,9 +134,11 @@ class CpsPanel(QWidget):
         self.mode = QComboBox()
         for data, text in MITIGATIONS:
             self.mode.addItem(text, data)
-        self.mode.setToolTip(str(settings.describe("cps.mode").get("help", "")))
+        self.mode.setToolTip(MITIGATION_TIP)
         self.mode.currentIndexChanged.connect(self._set_mitigation)
-        form.addRow(setting_label(settings, "cps.mode"), self.mode)
+        name = QLabel(setting_label(settings, "cps.mode"))
+        name.setToolTip(MITIGATION_TIP)
+        form.addRow(name, self.mode)
         layout.addWidget(box)
         self.controls: dict[str, QWidget] = {"cps.mode": self.mode}
 
@@ -137,41 +146,41 @@ class CpsPanel(QWidget):
         form = QFormLayout(box)
         levels = {s: block_label(s) for s in range(LEVELS)}
         self.max_level = add(form, "cps.max_level", items=levels)
-        self.fovea = add(form, "cps.fovea_deg", suffix=" deg", decimals=1, step=1.0)
-        self.falloff = add(form, "cps.deg_per_level", suffix=" deg/level", decimals=1, step=1.0)
+        self.fovea = add(form, "cps.fovea_deg")
+        self.falloff = add(form, "cps.deg_per_level")
         layout.addWidget(box)
 
-        box = QGroupBox("Edge rays")
+        box = QGroupBox("Near surfaces at the edges")
         form = QFormLayout(box)
-        self.near = add(form, "cps.near_m", suffix=" m", decimals=2, step=0.25)
-        self.far = add(form, "cps.far_m", suffix=" m", decimals=2, step=0.25)
-        self.rays = add(form, "cps.rays_per_side", step=1)
+        self.near = add(form, "cps.near_m")
+        self.far = add(form, "cps.far_m")
+        self.rays = add(form, "cps.rays_per_side")
         layout.addWidget(box)
 
         box = QGroupBox("Coarse shading")
         form = QFormLayout(box)
-        self.pipeline = add(form, self.pipeline_key, label="pipeline")
+        self.pipeline = add(form, self.pipeline_key)
         self.dispatch = add(form, "cps.dispatch")
         self.filter = add(form, "cps.filter")
         layout.addWidget(box)
 
-        box = QGroupBox("Alternating temporal filter")
+        box = QGroupBox("Smoothing over time")
         form = QFormLayout(box)
-        self.temporal = add(form, "cps.temporal", text="on")
-        self.reproject = add(form, "cps.reproject", text="reproject history")
-        self.history = add(form, "cps.history_weight", decimals=2, step=0.05)
+        self.temporal = add(form, "cps.temporal")
+        self.reproject = add(form, "cps.reproject")
+        self.history = add(form, "cps.history_weight")
         layout.addWidget(box)
 
-        box = QGroupBox("Detail visualisation")
+        box = QGroupBox("Detail colours")
         grid = QGridLayout(box)
-        self.visualize = self.form.control("cps.visualize", text="tint pixels by detail level")
+        self.visualize = self.form.control("cps.visualize")
         grid.addWidget(self.visualize, 0, 0, 1, 6)
         for level, colour in enumerate(CPS_LEVEL_COLOURS[:LEVELS]):
             swatch = QLabel()
             swatch.setFixedSize(18, 14)
             r, g, b = (round(c * 255) for c in colour)
             swatch.setStyleSheet(f"background: rgb({r},{g},{b}); border: 1px solid #444")
-            swatch.setToolTip(f"level {level}")
+            swatch.setToolTip(f"Blocks of {block_label(level)} pixels share one lighting result")
             row, col = 1 + level // 3, (level % 3) * 2
             grid.addWidget(swatch, row, col)
             text = f"{block_label(level)} (unpainted)" if level == 0 else block_label(level)
@@ -180,15 +189,15 @@ class CpsPanel(QWidget):
 
         box = QGroupBox("Live")
         live = QGridLayout(box)
-        live.addWidget(QLabel("pixels per level"), 0, 0, 1, 4)
+        live.addWidget(QLabel("Share of pixels per block size"), 0, 0, 1, 4)
         self.share_bar = LevelShareBar()
         live.addWidget(self.share_bar, 1, 0, 1, 4)
         self.share_label = QLabel(NONE)
         live.addWidget(self.share_label, 2, 0, 1, 4)
-        live.addWidget(QLabel("lighting samples"), 3, 0)
+        live.addWidget(QLabel("Lighting computed"), 3, 0)
         self.samples_label = QLabel(NONE)
         live.addWidget(self.samples_label, 3, 1, 1, 3)
-        live.addWidget(QLabel("edge rays: coarsest block allowed / nearest hit"), 4, 0, 1, 4)
+        live.addWidget(QLabel("Edges: coarsest block allowed / nearest surface"), 4, 0, 1, 4)
         for col, side in enumerate(SIDES, start=1):
             live.addWidget(QLabel(side), 5, col)
         self.edge_labels: list[list[QLabel]] = []
@@ -197,7 +206,10 @@ class CpsPanel(QWidget):
             cells = []
             for col in range(1, len(SIDES) + 1):
                 cell = QLabel(NONE)
-                cell.setToolTip("level cap of that side / distance of the nearest edge-ray hit")
+                cell.setToolTip(
+                    "The coarsest block this side of the eye may use, and how far\n"
+                    "away the nearest surface along its edge is (none: open space)."
+                )
                 live.addWidget(cell, row, col)
                 cells.append(cell)
             self.edge_labels.append(cells)

@@ -408,7 +408,7 @@ class MainWindow(QMainWindow):
         stats = self.view.photon_stats() if self._photons_shown is not None else {}
         if not wanted(s, scene):
             why = "turned off" if s.enabled == "off" else "the scene does not ask for it"
-            stats["status"] = f"off ({why}; set enabled to on to add it)"
+            stats["status"] = f"off ({why}; choose On above to add it)"
         elif self.photon_cache.tracing:
             stats["status"] = "tracing photons…"
             stats["tracing"] = self.photon_cache.progress

@@ -16,13 +16,27 @@ from PyQt6.QtWidgets import QFormLayout, QGroupBox, QLabel, QProgressBar, QVBoxL
 from app.settings import Settings
 from ui.panels import SettingsPanel
 
+#: The live figures: (key, title, tooltip).
 FIELDS = (
-    ("status", "Indirect light"),
-    ("stored", "Photons stored"),
-    ("trace", "Traced in"),
-    ("gather", "Gather (both eyes)"),
-    ("reuse", "Right eye reused"),
-    ("grid", "Hash grid"),
+    ("status", "Indirect light", "Whether this scene gets bounced light now, and why."),
+    ("stored", "Photons stored", "Photons that landed on surfaces and are kept."),
+    ("trace", "Traced in", "How long tracing the photons took (in the background)."),
+    (
+        "gather",
+        "Collecting (both eyes)",
+        "Time per frame spent collecting photons, per eye.\nPhoton paper: the gather.",
+    ),
+    (
+        "reuse",
+        "Right eye reused",
+        "Share of right-eye pixels taken from the left eye.\n"
+        "Photon paper: stereo reuse, section 3.3.",
+    ),
+    (
+        "grid",
+        "Search grid",
+        "The grid the photons are sorted into for the search.\nPhoton paper: hash grid.",
+    ),
 )
 
 
@@ -44,14 +58,18 @@ class PhotonPanel(QWidget):
         form = QFormLayout(box)
         self.progress = QProgressBar()
         self.progress.setRange(0, 100)
-        self.progress.setFormat("tracing photons %p%")
+        self.progress.setFormat("Tracing photons %p%")
+        self.progress.setToolTip("Photons are traced in the background; the view keeps going.")
         self.progress.hide()
         form.addRow(self.progress)
         self.labels: dict[str, QLabel] = {}
-        for key, title in FIELDS:
+        for key, title, tip in FIELDS:
             self.labels[key] = QLabel("-")
             self.labels[key].setWordWrap(True)
-            form.addRow(title, self.labels[key])
+            self.labels[key].setToolTip(tip)
+            name = QLabel(title)
+            name.setToolTip(tip)
+            form.addRow(name, self.labels[key])
         layout.addWidget(box)
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)

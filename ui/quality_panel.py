@@ -22,7 +22,24 @@ from PyQt6.QtWidgets import (
 )
 
 REGIONS = ("frame", "fovea", "periphery")
-METRICS = (("psnr_db", "PSNR dB"), ("ssim", "SSIM"), ("flip", "FLIP"))
+METRICS = (("psnr_db", "PSNR (dB)"), ("ssim", "SSIM"), ("flip", "FLIP"))
+#: What the table's rows and columns show, in words.
+REGION_TITLES = {
+    "frame": "Whole view",
+    "fovea": "Around the gaze",
+    "periphery": "Edges of the view",
+}
+TIPS = {
+    "psnr_db": "Peak signal-to-noise ratio: higher is closer to full\n"
+    "quality; above 40 dB differences are hard to see.",
+    "ssim": "Structural similarity: 1 means the same structure as full\n"
+    "quality, lower means visibly changed detail.",
+    "flip": "FLIP: how different the two pictures look to a person\n"
+    "flipping between them; 0 is no visible difference.",
+    "frame": "Both eyes' whole picture.",
+    "fovea": "The area around where you look, which must not change.",
+    "periphery": "Everything outside the area around the gaze.",
+}
 
 
 class QualityPanel(QWidget):
@@ -35,25 +52,38 @@ class QualityPanel(QWidget):
         self.report: dict = {}
         layout = QVBoxLayout(self)
         self.button = QPushButton("Measure this frame against full quality (F9)")
+        self.button.setToolTip(
+            "Draws this frame again at full quality and shows how far\nthe live picture is from it."
+        )
         self.button.clicked.connect(self.measure)
         layout.addWidget(self.button)
         box = QGroupBox("Error against full quality (display values)")
         grid = QGridLayout(box)
-        for col, (_key, title) in enumerate(METRICS, start=1):
-            grid.addWidget(QLabel(title), 0, col)
+        for col, (key, title) in enumerate(METRICS, start=1):
+            header = QLabel(title)
+            header.setToolTip(TIPS[key])
+            grid.addWidget(header, 0, col)
         self.cells: dict[tuple[str, str], QLabel] = {}
         for row, region in enumerate(REGIONS, start=1):
-            grid.addWidget(QLabel(region), row, 0)
+            name = QLabel(REGION_TITLES[region])
+            name.setToolTip(TIPS[region])
+            grid.addWidget(name, row, 0)
             for col, (key, _title) in enumerate(METRICS, start=1):
                 self.cells[region, key] = QLabel("-")
                 grid.addWidget(self.cells[region, key], row, col)
         self.fovea_diff = QLabel("-")
-        grid.addWidget(QLabel("fovea, largest difference"), len(REGIONS) + 1, 0, 1, 2)
+        grid.addWidget(
+            QLabel("Around the gaze, largest pixel difference"), len(REGIONS) + 1, 0, 1, 2
+        )
         grid.addWidget(self.fovea_diff, len(REGIONS) + 1, 2, 1, 2)
         layout.addWidget(box)
         self.heat = QCheckBox(
             "Show the FLIP heat map over the view (dark: no error; "
             "purple, orange, pale yellow: FLIP 0.25 and above)"
+        )
+        self.heat.setToolTip(
+            "Colours the view by how visible the error is at each pixel.\n"
+            "Available after a measurement."
         )
         self.heat.setEnabled(False)
         self.heat.toggled.connect(self._toggle_heat)

@@ -1,4 +1,4 @@
-"""TCR control panel: term toggles and presets, mode, dimmer, state diagram, level legend.
+"""TCR control panel: rules and presets, texture filtering, state diagram, level legend.
 
 Built on the settings model (controls from :class:`ui.panels.SettingsForm`, every edit through
 ``Settings.set``, a refused value shown in the panel) and polled at 4 Hz for the live parts
@@ -16,9 +16,7 @@ from PyQt6.QtWidgets import (
     QFormLayout,
     QGridLayout,
     QGroupBox,
-    QHBoxLayout,
     QLabel,
-    QSlider,
     QVBoxLayout,
     QWidget,
 )
@@ -28,12 +26,19 @@ from app.tcr import PRESETS, phase_name, terms_from_settings
 from render.passes import LEVEL_TINTS
 from ui.panels import SettingsForm, setting_label
 
+#: The paper's four states: (number, viewpoint, gaze, the rules in effect), in words.
 STATES = (
-    (0, "still", "gaze moves", "d, l"),
-    (1, "moving", "gaze moves", "d, v, l"),
-    (2, "still", "gaze fixed", "d, g, l"),
-    (3, "moving", "gaze fixed", "d, v, g, l"),
+    (0, "Standing", "eyes wandering", "distance, light"),
+    (1, "Walking", "eyes wandering", "+ motion"),
+    (2, "Standing", "gaze fixed", "+ gaze"),
+    (3, "Walking", "gaze fixed", "+ motion, gaze"),
 )
+#: The words for the rule set in use (the evaluation bar's "phase").
+PHASES = {
+    "psychology": "Psychology (distance, gaze, light)",
+    "ergonomics": "Ergonomics (distance, motion, light)",
+    "custom": "Custom",
+}
 
 
 class StateDiagram(QWidget):
@@ -43,6 +48,11 @@ class StateDiagram(QWidget):
         super().__init__(parent)
         self.state = 0
         self.setMinimumSize(240, 110)
+        self.setToolTip(
+            "The TCR paper's four states: standing or walking, eyes wandering\n"
+            "or fixed on one point. The lit state is the current one; each\n"
+            "uses distance and light, plus the rules shown."
+        )
 
     def set_state(self, state: int) -> None:
         if state != self.state:
@@ -64,7 +74,7 @@ class StateDiagram(QWidget):
             p.drawText(
                 r,
                 Qt.AlignmentFlag.AlignCenter,
-                f"state {state}\nviewpoint {view}, {gaze}\n{params}",
+                f"{state}: {view}\n{gaze}\n{params}",
             )
         p.end()
 
@@ -82,30 +92,49 @@ class TcrPanel(QWidget):
         layout.addWidget(self.form.status)
         box = QGroupBox("Adaptive texture mapping")
         form = QFormLayout(box)
-        self.enabled = self.form.add_row(form, "tcr.enabled", text="on")
+        self.enabled = self.form.add_row(form, "tcr.enabled")
         self.preset = self.form.add_row(form, "tcr.preset")
-        terms_row = QHBoxLayout()
+        terms_row = QGridLayout()
         self.terms: dict[str, QCheckBox] = {}
-        for term in "dvgl":
+        for i, term in enumerate("dvgl"):
             # The terms a preset implies: derived, so not one setting each (see _set_term).
-            cb = QCheckBox(term)
-            cb.setToolTip(str(self.settings.describe(f"tcr.use_{term}").get("help", "")))
+            key = f"tcr.use_{term}"
+            cb = QCheckBox(setting_label(self.settings, key))
+            cb.setToolTip(self.settings.explain(key))
             cb.toggled.connect(lambda v, t=term: self._set_term(t, v))
             self.terms[term] = cb
-            terms_row.addWidget(cb)
-        form.addRow("terms", terms_row)
+            terms_row.addWidget(cb, i // 2, i % 2)
+        rules = QLabel("Detail follows")
+        rules.setToolTip(
+            "The rules that lower or raise each object's texture detail;\n"
+            "ticking one makes your own set.\n"
+            "TCR paper: the terms d, v, g and l."
+        )
+        form.addRow(rules, terms_row)
         self.mode = self.form.add_row(form, "tcr.mode")
-        self.f = self.form.add_row(form, "tcr.f_m", decimals=2, step=0.1)
-        # The dimmer as a slider over 0..1 (the model allows brighter; the slider stops at 1).
-        self.dimmer = QSlider(Qt.Orientation.Horizontal)
-        self.dimmer.setRange(0, 100)
-        self.dimmer.setToolTip(str(self.settings.describe("render.brightness").get("help", "")))
-        self.dimmer.valueChanged.connect(lambda v: self.form.set("render.brightness", v / 100.0))
-        form.addRow(setting_label(self.settings, "render.brightness"), self.dimmer)
-        self.tint = self.form.add_row(form, "tcr.tint", text="tint objects by level")
+        self.f = self.form.add_row(form, "tcr.f_m")
+        # Brightness has one control (Settings tab); the light rule reads it, so show it here.
+        self.brightness = QLabel()
+        self.brightness.setToolTip(
+            "The scene's brightness, which the dim-light rule reads;\n"
+            "change it with Brightness in the Settings tab."
+        )
+        form.addRow(QLabel("Scene brightness"), self.brightness)
+        self.tint = self.form.add_row(form, "tcr.tint")
         layout.addWidget(box)
 
-        legend = QGroupBox("Level legend")
+        box = QGroupBox("Walking or standing")
+        form = QFormLayout(box)
+        self.move_on = self.form.add_row(form, "tcr.move_on")
+        self.move_off = self.form.add_row(form, "tcr.move_off")
+        self.window = self.form.add_row(form, "tcr.window_s")
+        layout.addWidget(box)
+
+        legend = QGroupBox("Texture level colours")
+        legend.setToolTip(
+            "The tint each texture level gets when Tint objects by level\n"
+            "is on: 0 is the full texture, each level after it half as sharp."
+        )
         grid = QGridLayout(legend)
         for level, colour in enumerate(LEVEL_TINTS):
             swatch = QLabel()
@@ -114,7 +143,7 @@ class TcrPanel(QWidget):
             swatch.setStyleSheet(f"background: rgb({r},{g},{b}); border: 1px solid #444")
             grid.addWidget(swatch, level // 4, (level % 4) * 2)
             text = (
-                "0 (finest)"
+                "0 (full detail)"
                 if level == 0
                 else (f"{level}+" if level == len(LEVEL_TINTS) - 1 else str(level))
             )
@@ -127,10 +156,16 @@ class TcrPanel(QWidget):
         self.readout = QLabel()
         self.readout.setWordWrap(True)
         self.readout.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.readout.setToolTip(
+            "Why the object under the gaze has its texture level.\n"
+            "TCR paper: level j = d + v - g + l, kept within the\n"
+            "texture's levels (0 is full detail)."
+        )
         layout.addWidget(self.phase)
         layout.addWidget(self.readout)
         layout.addStretch(1)
         self.refresh()
+        self.poll()
         self.timer = QTimer(self)
         self.timer.timeout.connect(self.poll)
         self.timer.start(250)
@@ -157,26 +192,27 @@ class TcrPanel(QWidget):
         """Show the model's values (after a change here, a preset load, or the CLI)."""
         self.form.refresh()
         terms = terms_from_settings(self.settings.tcr)
-        widgets = (self.dimmer, *self.terms.values())
-        for w in widgets:
+        for w in self.terms.values():
             w.blockSignals(True)
-        self.dimmer.setValue(round(min(self.settings.render.brightness, 1.0) * 100))
         for name, cb in self.terms.items():
             cb.setChecked(getattr(terms, name))
-        for w in widgets:
+        for w in self.terms.values():
             w.blockSignals(False)
 
     def poll(self) -> None:
         s = self.session
         self.diagram.set_state(s.state)
         t = self.settings.tcr
-        phase = phase_name(terms_from_settings(t)) if t.enabled else "TCR off"
-        self.phase.setText(f"phase: {phase}   state: {s.state}")
+        phase = PHASES[phase_name(terms_from_settings(t))] if t.enabled else "off"
+        self.phase.setText(f"Rules in use: {phase}")
+        self.brightness.setText(
+            f"{self.settings.render.brightness * 100:.0f}% (change it in Settings, Picture)"
+        )
         reason = s.reason(s.gazed)
         name = s.gazed_object()
         if reason is None or name is None:
-            self.readout.setText("gaze on: nothing")
+            self.readout.setText("Looking at: nothing")
         elif not t.enabled:
-            self.readout.setText(f"{name}: level 0 (TCR off)")
+            self.readout.setText(f"{name}: full texture detail (adaptive textures off)")
         else:
-            self.readout.setText(reason.describe(name))
+            self.readout.setText(reason.plain(name))
