@@ -14,22 +14,23 @@ import io
 import itertools
 import json
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
-from PIL import Image, ImageDraw
 
 from app.fileio import atomic_write_json, atomic_write_png, atomic_write_text
-from app.lab.bench import TraceProgress, bench
+from app.lab.bench import CliBar, TraceProgress, bench
 from app.lab.reference import ConvergedPhotons
 from app.lab.report import markdown
 from app.lab.results import BenchResult
 from app.lab.runs import Run, bench_run, named_runs
 
 FULL = "full-quality"
+PLOT_RUN = "#2a5ac8"  # blue: a run
+PLOT_FRONT = "#dc1e1e"  # red: the Pareto front
 
 
 @dataclass(frozen=True)
@@ -312,58 +313,112 @@ def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) 
     )
 
 
-def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.ndarray:
-    """Frame time (x) against FLIP (y), every run a dot, the Pareto front joined in red and
-    named (with full quality and the masks); the other runs' names are in report.md."""
-    img = Image.new("RGB", size, (255, 255, 255))
-    d = ImageDraw.Draw(img)
-    pts = [r for r in rows if _finite(r.get("frame_ms")) and _finite(r.get("flip"))]
-    left, top, right, bottom = 80, 40, size[0] - 30, size[1] - 60
-    d.rectangle((left, top, right, bottom), outline=(0, 0, 0))
-    d.text((left, 10), title + ": frame time against error (FLIP)", fill=(0, 0, 0))
-    d.text(((left + right) // 2 - 40, bottom + 30), "frame time (ms)", fill=(0, 0, 0))
-    d.text((5, top - 20), "FLIP", fill=(0, 0, 0))
-    if not pts:
-        return np.asarray(img)
-    xs = [r["frame_ms"] for r in pts]
-    ys = [r["flip"] for r in pts]
-    x0, x1 = 0.0, max(xs) * 1.1
-    y0, y1 = 0.0, max(max(ys) * 1.1, 1e-3)
+@dataclass(frozen=True)
+class PlotData:
+    """What the study's plot shows: every run with both figures (name, frame ms, FLIP), the
+    Pareto front's points fastest first, and the front as a step line (x, y): from each point
+    along to the next one's frame time, then down to its error, so everything above and to
+    the right of the line is beaten by a run on it."""
 
-    def to_px(x: float, y: float) -> tuple[float, float]:
-        return (
-            left + (x - x0) / (x1 - x0) * (right - left),
-            bottom - (y - y0) / (y1 - y0) * (bottom - top),
-        )
-
-    for k in range(5):  # axis ticks
-        x = x0 + (x1 - x0) * k / 4
-        y = y0 + (y1 - y0) * k / 4
-        px, _ = to_px(x, y0)
-        _, py = to_px(x0, y)
-        d.text((px - 10, bottom + 8), f"{x:.0f}", fill=(60, 60, 60))
-        d.text((left - 55, py - 6), f"{y:.3f}", fill=(60, 60, 60))
-    line = [to_px(r["frame_ms"], r["flip"]) for name in front for r in pts if r["name"] == name]
-    if len(line) > 1:
-        d.line(line, fill=(220, 30, 30), width=2)
-    for r in pts:
-        px, py = to_px(r["frame_ms"], r["flip"])
-        on = r["name"] in front
-        colour = (220, 30, 30) if on else (40, 90, 200)
-        d.ellipse((px - 4, py - 4, px + 4, py + 4), fill=colour)
-        if on or r["name"] in (FULL, "black-mask", "blur-mask"):  # the rest: see report.md
-            d.text((px + 6, py - 6), r["name"], fill=colour)
-    return np.asarray(img)
+    points: tuple[tuple[str, float, float], ...]
+    front: tuple[tuple[str, float, float], ...]
+    step_x: tuple[float, ...]
+    step_y: tuple[float, ...]
 
 
-def print_progress(done: int, total: int, name: str) -> None:
-    width = 30
-    filled = round(width * (done - 1) / max(1, total))
-    print(
-        f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name:<40}",
-        end="",
-        file=sys.stderr,
-        flush=True,
+def plot_data(rows: list[dict], front: list[str]) -> PlotData:
+    pts = tuple(
+        (r["name"], float(r["frame_ms"]), float(r["flip"]))
+        for r in rows
+        if _finite(r.get("frame_ms")) and _finite(r.get("flip"))
     )
-    if done == total:
-        print(file=sys.stderr)
+    by_name = {p[0]: p for p in pts}
+    on = tuple(by_name[n] for n in front if n in by_name)
+    xs: list[float] = []
+    ys: list[float] = []
+    for i, (_name, x, y) in enumerate(on):
+        xs.append(x)
+        ys.append(y)
+        if i + 1 < len(on):
+            xs.append(on[i + 1][1])  # along at this error to the next run's frame time
+            ys.append(y)
+    return PlotData(pts, on, tuple(xs), tuple(ys))
+
+
+def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.ndarray:
+    """Frame time (x) against FLIP (y) drawn with matplotlib: every run a dot, the Pareto
+    front a red step line through its runs, named (with full quality and the masks); the
+    other runs' names are in report.md. Returns the picture as an HxWx3 array."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    data = plot_data(rows, front)
+    dpi = 100
+    fig = Figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi, layout="constrained")
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.set_title(f"{title}: frame time against error (FLIP)")
+    ax.set_xlabel("frame time, median (ms)")
+    ax.set_ylabel("FLIP error against full quality (0 = identical)")
+    ax.grid(True, color="#dddddd", linewidth=0.8)
+    ax.set_axisbelow(True)
+    others = [p for p in data.points if p not in data.front]
+    if others:
+        ax.scatter(
+            [p[1] for p in others],
+            [p[2] for p in others],
+            s=30,
+            color=PLOT_RUN,
+            label="run (not on the front)",
+            zorder=3,
+        )
+    if data.front:
+        ax.plot(
+            data.step_x,
+            data.step_y,
+            color=PLOT_FRONT,
+            linewidth=1.8,
+            label="Pareto front: no run is both faster and more accurate",
+            zorder=2,
+        )
+        ax.scatter(
+            [p[1] for p in data.front],
+            [p[2] for p in data.front],
+            s=42,
+            color=PLOT_FRONT,
+            label="run on the front",
+            zorder=4,
+        )
+    for name, x, y in data.points:
+        on = any(name == p[0] for p in data.front)
+        if on or name in (FULL, "black-mask", "blur-mask"):  # the rest: see report.md
+            ax.annotate(
+                name,
+                (x, y),
+                xytext=(5, 4),
+                textcoords="offset points",
+                fontsize=8,
+                color=PLOT_FRONT if on else PLOT_RUN,
+            )
+    target = 1000.0 / 30.0
+    ax.axvline(target, color="#888888", linestyle="--", linewidth=1, label="33.3 ms: 30 fps")
+    if data.points:
+        ax.set_xlim(0, max(max(p[1] for p in data.points) * 1.15, target * 1.1))
+        ax.set_ylim(0, max(max(p[2] for p in data.points) * 1.15, 1e-3))
+        ax.legend(loc="upper right", fontsize=9)
+    else:
+        ax.set_xlim(0, target * 1.1)
+        ax.text(0.5, 0.5, "no run with both figures", ha="center", transform=ax.transAxes)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+
+class RunProgress(CliBar):
+    """:func:`run_study`'s ``progress(index, total, name)`` (before each run, from 1) as a bar
+    of runs with the running one's name; leaving ``with`` shows them all done."""
+
+    def __init__(self, file: TextIO | None = None) -> None:
+        super().__init__("study", "run", file, mininterval=0.0)  # a run takes minutes
+
+    def __call__(self, index: int, total: int, name: str) -> None:
+        self.count(index - 1, total, name)
