@@ -146,3 +146,29 @@ PASS_LABELS = {
 
 def pass_label(name: str) -> str:
     return PASS_LABELS.get(name, name.replace("_", " "))
+
+
+# A pass keeps its colour in the live graph and the lab's plots, whichever others run; none is
+# the red of the target line.
+PASS_COLOURS = {
+    "gbuffer": "#1f77b4",
+    "light_cull": "#17becf",
+    "cps_levels": "#bcbd22",
+    "photons": "#9467bd",
+    "lighting": "#ff7f0e",
+    "cps_lighting": "#ffbb78",
+    "cps_filter": "#e377c2",
+    "cps_temporal": "#8c564b",
+    "cps_mask": "#5a5a8c",
+    "emissive": "#ffd700",
+    "forward": "#2ca02c",
+    "present": "#98df8a",
+    "overlay": "#aec7e8",
+    OTHER: "#c8c8c8",
+}
+_SPARE_COLOURS = ("#60a0a0", "#a0783c", "#783ca0")
+
+
+def pass_colour(name: str) -> str:
+    """The pass's colour as ``#rrggbb`` (a pass not listed: one of a few spare colours)."""
+    return PASS_COLOURS.get(name) or _SPARE_COLOURS[sum(map(ord, name)) % len(_SPARE_COLOURS)]

@@ -1,11 +1,15 @@
-"""The study's plot as a user reads it: the right points on the Pareto front, the front as a
-step line, and a picture with axes, legend and the front in red."""
+"""The lab's plots as a user reads them: the right points on the Pareto front, the front as a
+step line, the front in red, a bar per experiment run in its passes' colours."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 
-from app.lab.study import FULL, pareto, plot, plot_data
+from app.frame_log import OTHER, pass_colour
+from app.lab.plots import RunTimes, plot_data, run_times_plot
+from app.lab.study import FULL, pareto, plot
 
 ROWS = [
     {"name": FULL, "frame_ms": 120.0, "flip": 0.0},
@@ -64,3 +68,38 @@ def _longest_run(row: np.ndarray) -> int:
         cur = cur + 1 if v else 0
         best = max(best, cur)
     return best
+
+
+RUNS = [
+    RunTimes("fragment", 80.0, 95.0, {"gbuffer": 10.0, "light_cull": 0.0, "lighting": 55.0}, 0.0),
+    RunTimes("black-mask", 30.0, 35.0, {"gbuffer": 10.0, "cps_mask": 3.0, "lighting": 12.0}, 0.2),
+    RunTimes("cps", 42.0, 50.0, {"gbuffer": 10.0, "cps_lighting": 20.0}, 0.04),
+    RunTimes("not-compared", 45.0, 60.0, {"gbuffer": 10.0, "cps_lighting": 22.0}),
+]
+
+
+def test_a_run_bar_is_its_passes_then_the_rest_of_the_frame():
+    assert RUNS[0].layers() == [("gbuffer", 10.0), ("lighting", 55.0), (OTHER, 15.0)]
+    busy = RunTimes("gpu-bound", 20.0, 21.0, {"gbuffer": 12.0, "lighting": 9.0})
+    assert busy.layers()[-1] == (OTHER, 0.0)  # never a negative rest
+    result = SimpleNamespace(
+        frame_ms=SimpleNamespace(median=42.0, p95=50.0),
+        passes={"gbuffer": SimpleNamespace(median_ms=10.0)},
+        error_vs_full_quality=SimpleNamespace(frame=SimpleNamespace(frames=2, flip=0.04)),
+    )
+    assert RunTimes.of("cps", result) == RunTimes("cps", 42.0, 50.0, {"gbuffer": 10.0}, 0.04)
+    result.error_vs_full_quality = None
+    assert RunTimes.of("cps", result).flip is None
+
+
+def test_experiment_plot_shows_each_pass_colour_and_the_front_of_the_compared_runs():
+    img = run_times_plot(RUNS, "experiments cps")
+    assert img.dtype == np.uint8 and img.shape == (420, 1800, 3)
+    for name in ("gbuffer", "lighting", "cps_mask", "cps_lighting", OTHER):
+        colour = np.array([int(pass_colour(name)[i : i + 2], 16) for i in (1, 3, 5)])
+        assert near(img, colour, tol=3).sum() > 200, name
+    assert near(img[:, 1100:], RED).sum() > 300  # the second panel's Pareto front
+    alone = run_times_plot(RUNS[3:], "experiments cps")  # nothing compared: the bars only
+    assert alone.shape == (420, 1100, 3)
+    many = run_times_plot(RUNS * 8, "experiments cps")
+    assert many.shape[0] == 90 + 24 * 32  # a row per run

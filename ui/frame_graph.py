@@ -15,7 +15,8 @@ from PyQt6.QtCore import QPointF, QRectF, Qt, QTimer
 from PyQt6.QtGui import QAction, QColor, QKeySequence, QPainter, QPen, QPolygonF
 from PyQt6.QtWidgets import QDockWidget, QMainWindow, QWidget
 
-from app.frame_log import OTHER, FrameLog, nice_ceiling, pass_label, target_fps
+from app.frame_log import FrameLog, nice_ceiling, pass_label, target_fps
+from app.frame_log import pass_colour as pass_hex
 from app.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -25,29 +26,10 @@ TARGET_COLOUR = QColor(220, 0, 0)
 BACKGROUND = QColor(255, 255, 255)
 GRID = QColor(225, 225, 225)
 TEXT = QColor(40, 40, 40)
-# A pass keeps its colour whichever others run (none of them is the target line's red).
-PASS_COLOURS = {
-    "gbuffer": QColor(31, 119, 180),
-    "light_cull": QColor(23, 190, 207),
-    "cps_levels": QColor(188, 189, 34),
-    "photons": QColor(148, 103, 189),
-    "lighting": QColor(255, 127, 14),
-    "cps_lighting": QColor(255, 187, 120),
-    "cps_filter": QColor(227, 119, 194),
-    "cps_temporal": QColor(140, 86, 75),
-    "cps_mask": QColor(90, 90, 140),
-    "emissive": QColor(255, 215, 0),
-    "forward": QColor(44, 160, 44),
-    "present": QColor(152, 223, 138),
-    "overlay": QColor(174, 199, 232),
-    OTHER: QColor(200, 200, 200),
-}
-_SPARE = (QColor(96, 160, 160), QColor(160, 120, 60), QColor(120, 60, 160))
 
 
 def pass_colour(name: str) -> QColor:
-    colour = PASS_COLOURS.get(name)
-    return colour if colour is not None else _SPARE[sum(map(ord, name)) % len(_SPARE)]
+    return QColor(pass_hex(name))
 
 
 class FrameGraph(QWidget):

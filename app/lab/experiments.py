@@ -12,8 +12,10 @@ import json
 import logging
 from pathlib import Path
 
+from app.fileio import atomic_write_png
 from app.lab.bench import CliBar, TraceProgress
 from app.lab.photon_bench import table_runs, tables, write_peer
+from app.lab.plots import RunTimes, run_times_plot
 from app.lab.reference import ConvergedPhotons
 from app.lab.report import report
 from app.lab.results import write_json
@@ -144,10 +146,11 @@ EXPERIMENTS = {"tcr": tcr_runs, "cps": cps_runs, "photons": photon_runs}
 
 def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
     """Run every benchmark of an experiment (names containing ``only``, if given) into
-    ``out_dir``; returns the tables."""
+    ``out_dir``, with their frame times plotted in ``frame_times.png``; returns the tables."""
     out = Path(out_dir)
     runs = [r for r in EXPERIMENTS[which]() if not only or only in r.name]
     files: list[str | Path] = []
+    times: list[RunTimes] = []
     converged = ConvergedPhotons(TraceProgress())  # traced once for all the runs that compare
     with CliBar(f"experiments {which}", "run", mininterval=0.0) as bar:
         for index, run in enumerate(runs):
@@ -157,7 +160,17 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
             target = out / f"{run.name}.json"
             write_json(target, result)
             files.append(target)
+            times.append(RunTimes.of(run.name, result))
             log.info("%s: %.2f fps, %.1f ms", run.name, result.fps_median, result.frame_ms.median)
+    picture = out / "frame_times.png"
+    atomic_write_png(picture, run_times_plot(times, f"experiments {which}"))
+    text = _tables(which, out, only, runs, files)
+    return text + f"\n\nFrame time per run (and error against time) plotted in {picture}\n"
+
+
+def _tables(
+    which: str, out: Path, only: str | None, runs: list[Run], files: list[str | Path]
+) -> str:
     if which == "photons":
         # Every run in the folder, so a table can be completed by later --only runs.
         results = {

@@ -23,14 +23,13 @@ import numpy as np
 
 from app.fileio import atomic_write_json, atomic_write_png, atomic_write_text
 from app.lab.bench import CliBar, TraceProgress, bench
+from app.lab.plots import finite, pareto, pareto_plot
 from app.lab.reference import ConvergedPhotons
 from app.lab.report import markdown
 from app.lab.results import BenchResult
 from app.lab.runs import Run, bench_run, named_runs
 
 FULL = "full-quality"
-PLOT_RUN = "#2a5ac8"  # blue: a run
-PLOT_FRONT = "#dc1e1e"  # red: the Pareto front
 
 
 @dataclass(frozen=True)
@@ -191,26 +190,6 @@ class StudyRow:
 FIELDS = tuple(f.name for f in fields(StudyRow))
 
 
-def pareto(rows: list[dict], cost: str = "frame_ms", error: str = "flip") -> list[str]:
-    """Names of the rows no other row beats on both frame time and error (lower is better)."""
-    ok = [r for r in rows if _finite(r.get(cost)) and _finite(r.get(error))]
-    front = []
-    for r in ok:
-        dominated = any(
-            o[cost] <= r[cost]
-            and o[error] <= r[error]
-            and (o[cost] < r[cost] or o[error] < r[error])
-            for o in ok
-        )
-        if not dominated:
-            front.append(r["name"])
-    return sorted(front, key=lambda n: next(r[cost] for r in ok if r["name"] == n))
-
-
-def _finite(v: object) -> bool:
-    return isinstance(v, (int, float)) and math.isfinite(v)
-
-
 def run_study(
     which: str,
     out_dir: str | Path,
@@ -263,7 +242,7 @@ def to_csv(rows: list[dict]) -> str:
 
 
 def _fmt(v: object, spec: str) -> str:
-    if not _finite(v):
+    if not finite(v):
         return "identical" if v == math.inf else "-"
     return format(v, spec)
 
@@ -313,104 +292,11 @@ def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) 
     )
 
 
-@dataclass(frozen=True)
-class PlotData:
-    """What the study's plot shows: every run with both figures (name, frame ms, FLIP), the
-    Pareto front's points fastest first, and the front as a step line (x, y): from each point
-    along to the next one's frame time, then down to its error, so everything above and to
-    the right of the line is beaten by a run on it."""
-
-    points: tuple[tuple[str, float, float], ...]
-    front: tuple[tuple[str, float, float], ...]
-    step_x: tuple[float, ...]
-    step_y: tuple[float, ...]
-
-
-def plot_data(rows: list[dict], front: list[str]) -> PlotData:
-    pts = tuple(
-        (r["name"], float(r["frame_ms"]), float(r["flip"]))
-        for r in rows
-        if _finite(r.get("frame_ms")) and _finite(r.get("flip"))
-    )
-    by_name = {p[0]: p for p in pts}
-    on = tuple(by_name[n] for n in front if n in by_name)
-    xs: list[float] = []
-    ys: list[float] = []
-    for i, (_name, x, y) in enumerate(on):
-        xs.append(x)
-        ys.append(y)
-        if i + 1 < len(on):
-            xs.append(on[i + 1][1])  # along at this error to the next run's frame time
-            ys.append(y)
-    return PlotData(pts, on, tuple(xs), tuple(ys))
-
-
 def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.ndarray:
-    """Frame time (x) against FLIP (y) drawn with matplotlib: every run a dot, the Pareto
-    front a red step line through its runs, named (with full quality and the masks); the
-    other runs' names are in report.md. Returns the picture as an HxWx3 array."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    data = plot_data(rows, front)
-    dpi = 100
-    fig = Figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi, layout="constrained")
-    canvas = FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    ax.set_title(f"{title}: frame time against error (FLIP)")
-    ax.set_xlabel("frame time, median (ms)")
-    ax.set_ylabel("FLIP error against full quality (0 = identical)")
-    ax.grid(True, color="#dddddd", linewidth=0.8)
-    ax.set_axisbelow(True)
-    others = [p for p in data.points if p not in data.front]
-    if others:
-        ax.scatter(
-            [p[1] for p in others],
-            [p[2] for p in others],
-            s=30,
-            color=PLOT_RUN,
-            label="run (not on the front)",
-            zorder=3,
-        )
-    if data.front:
-        ax.plot(
-            data.step_x,
-            data.step_y,
-            color=PLOT_FRONT,
-            linewidth=1.8,
-            label="Pareto front: no run is both faster and more accurate",
-            zorder=2,
-        )
-        ax.scatter(
-            [p[1] for p in data.front],
-            [p[2] for p in data.front],
-            s=42,
-            color=PLOT_FRONT,
-            label="run on the front",
-            zorder=4,
-        )
-    for name, x, y in data.points:
-        on = any(name == p[0] for p in data.front)
-        if on or name in (FULL, "black-mask", "blur-mask"):  # the rest: see report.md
-            ax.annotate(
-                name,
-                (x, y),
-                xytext=(5, 4),
-                textcoords="offset points",
-                fontsize=8,
-                color=PLOT_FRONT if on else PLOT_RUN,
-            )
-    target = 1000.0 / 30.0
-    ax.axvline(target, color="#888888", linestyle="--", linewidth=1, label="33.3 ms: 30 fps")
-    if data.points:
-        ax.set_xlim(0, max(max(p[1] for p in data.points) * 1.15, target * 1.1))
-        ax.set_ylim(0, max(max(p[2] for p in data.points) * 1.15, 1e-3))
-        ax.legend(loc="upper right", fontsize=9)
-    else:
-        ax.set_xlim(0, target * 1.1)
-        ax.text(0.5, 0.5, "no run with both figures", ha="center", transform=ax.transAxes)
-    canvas.draw()
-    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    """Frame time (x) against FLIP (y): every run a dot, the Pareto front a red step line
+    through its runs, named (with full quality and the masks); the other runs' names are in
+    report.md. An HxWx3 array."""
+    return pareto_plot(rows, front, title, size, named=(FULL, "black-mask", "blur-mask"))
 
 
 class RunProgress(CliBar):
