@@ -53,7 +53,7 @@ class FrameGraph(QWidget):
         self.clock = clock
         self.top_ms = 50.0  # the y axis' top, set by each paint
         self._failed = False
-        self.setMinimumSize(360, 140)
+        self.setMinimumSize(300, 100)  # a strip under the view; it must not grow the window
         self.setToolTip(
             "Frame time of the last seconds: each colour is one render pass's GPU time, grey "
             "is the rest of the frame (CPU work, waiting); the red line is the target frame "
