@@ -15,6 +15,7 @@ from PyQt6.QtCore import QPointF, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import QKeyEvent, QMouseEvent, QSurfaceFormat
 from PyQt6.QtOpenGLWidgets import QOpenGLWidget
 
+from app.frame_log import FrameLog
 from app.overlay_text import text_image
 from app.scene import Scene
 from app.session import Session
@@ -56,6 +57,7 @@ class StereoView(QOpenGLWidget):
         self.renderer: Renderer | None = None
         self.ctx: moderngl.Context | None = None
         self.timer = FrameTimer()
+        self.frame_log = FrameLog()  # the last seconds of frames, for the frame-time graph
         self._pending_scene: Scene | None = session.scene
         self._pending_photons: tuple | None = None  # (PhotonMap | None,) once set
         self._probe = None  # render.quality.QualityProbe, made on the first measurement
@@ -113,6 +115,7 @@ class StereoView(QOpenGLWidget):
             self.renderer.overlay.set_text_image(text_image(lines))
         self.renderer.render(frame, fbo)
         self.timer.tick(now)
+        self.frame_log.record(now, self.renderer.pass_ms())
 
     def set_scene(self, scene: Scene) -> None:
         """Swap the scene; the GPU upload happens in the next paintGL (context current)."""

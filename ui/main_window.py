@@ -44,6 +44,7 @@ from app.tcr import phase_name, terms_from_settings
 from render.texture_stream import prepare_textures
 from ui import guard
 from ui.cps_panel import CpsPanel
+from ui.frame_graph import frame_graph_dock
 from ui.gl_view import StereoView, default_format
 from ui.panels import EvaluationBar, SettingsPanel
 from ui.photon_panel import PhotonPanel
@@ -113,6 +114,7 @@ class MainWindow(QMainWindow):
         self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, self.dock)
         self.eval_bar = EvaluationBar(self._poll)
         self.statusBar().addPermanentWidget(self.eval_bar, 1)
+        self.frame_dock = frame_graph_dock(self, self.view.frame_log, self.settings)  # F3
         self._build_menus()
         self._update_title()
         QApplication.instance().installEventFilter(self)
@@ -145,6 +147,7 @@ class MainWindow(QMainWindow):
         self.mode_action = action(v, "Normal mode (scene only)\tTab", self.toggle_mode)
         action(v, "Play walkthrough", self.toggle_play, "P")
         action(v, "Record path", self.toggle_recording, "Ctrl+R")
+        v.addAction(self.frame_dock.toggleViewAction())
         self.viewpoint_menu = bar.addMenu("View&points")
         action(self.viewpoint_menu, "Save viewpoint…", self.save_viewpoint, "Ctrl+B")
         self.viewpoint_menu.addSeparator()

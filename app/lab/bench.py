@@ -12,6 +12,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any, TextIO, TypeVar
 
 import numpy as np
 
@@ -72,24 +73,87 @@ def cli_load_progress(name: str) -> Iterator[LoadProgress]:
         yield LoadProgress(report)
 
 
-class TraceProgress:
-    """A text progress bar for photon tracing on stderr (each fraction printed once)."""
+_Bar = TypeVar("_Bar", bound="CliBar")
 
-    def __init__(self) -> None:
-        self.last = -1.0
+
+class CliBar:
+    """A tqdm bar with an ETA on stderr, shown only when stderr is a terminal (logs and tests
+    stay clean). Made on the first report, closed by the last one or on leaving ``with``."""
+
+    def __init__(
+        self, desc: str, unit: str, file: TextIO | None = None, mininterval: float = 0.1
+    ) -> None:
+        self.desc = desc
+        self.unit = unit
+        self.file = file
+        self.mininterval = mininterval  # seconds between redraws (0: every report)
+        self.bar_format: str | None = None  # tqdm's own unless a subclass says otherwise
+        self.bar: Any = None
+
+    def count(self, done: int, total: int, text: str = "") -> None:
+        """``done`` of ``total`` finished; ``text`` names what is running."""
+        from tqdm import tqdm
+
+        if self.bar is None or self.bar.total != total:
+            self.close()
+            self.bar = tqdm(
+                total=total,
+                desc=self.desc,
+                unit=self.unit,
+                file=self.file or sys.stderr,
+                disable=None,  # None: off unless the stream is a terminal
+                dynamic_ncols=True,
+                mininterval=self.mininterval,
+                bar_format=self.bar_format,
+            )
+        if text:
+            self.bar.set_postfix_str(text, refresh=False)
+        self.bar.update(max(0, min(done, total)) - self.bar.n)
+        if done >= total:
+            self.close()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+    def finish(self) -> None:
+        """Everything done: the bar shows its total, then closes."""
+        if self.bar is not None:
+            self.count(self.bar.total, self.bar.total)
+
+    def __enter__(self: _Bar) -> _Bar:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.finish()
+        self.close()
+
+
+class FrameProgress(CliBar):
+    """``progress(done, total)`` of a benchmark or walkthrough, as a bar of frames."""
+
+    def __init__(self, desc: str, file: TextIO | None = None, mininterval: float = 0.1) -> None:
+        super().__init__(desc, "frame", file, mininterval)
+
+    def __call__(self, done: int, total: int) -> None:
+        self.count(done, total)
+
+
+class TraceProgress(CliBar):
+    """Photon tracing's ``progress(fraction)`` as a bar of percent."""
+
+    def __init__(self, file: TextIO | None = None, mininterval: float = 0.1) -> None:
+        super().__init__("tracing photons", "%", file, mininterval)
+        self.bar_format = "{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}]"
+        self.last = -1
 
     def __call__(self, fraction: float) -> None:
-        if fraction == self.last:
-            return
-        self.last = fraction
-        filled = int(round(30 * min(max(fraction, 0.0), 1.0)))
-        end = "\n" if fraction >= 1.0 else ""
-        print(
-            f"\rtracing photons [{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:3.0f}%",
-            end=end,
-            file=sys.stderr,
-            flush=True,
-        )
+        percent = round(100 * min(max(fraction, 0.0), 1.0))
+        if percent != self.last:  # a trace reports 1.0 once more when it is done
+            self.last = percent
+            self.count(percent, 100)
 
 
 def render_frame(

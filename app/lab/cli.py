@@ -140,19 +140,6 @@ def _settings(args: argparse.Namespace) -> Settings:
     return settings
 
 
-def _progress(label: str):
-    def report(done: int, total: int) -> None:
-        if done == total or done % 30 == 0:
-            print(
-                f"\r{label}: {done}/{total} frames",
-                end="\n" if done == total else "",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    return report
-
-
 def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
@@ -211,10 +198,11 @@ def _run(
         print(run_all(args.which, args.out or f"out/bench-{args.which}", args.only))
         return 0
     if args.command == "study":
-        from app.lab.study import print_progress, run_study
+        from app.lab.study import RunProgress, run_study
 
         out = args.out or f"out/study-{args.which}"
-        rows = run_study(args.which, out, args.size, print_progress)
+        with RunProgress() as progress:
+            rows = run_study(args.which, out, args.size, progress)
         print(f"{len(rows)} runs; results.json, results.csv, report.md and pareto.png in {out}/")
         return 0
     if args.command == "report":
@@ -240,17 +228,18 @@ def _run(
         return 0
     if args.command == "bench":
         size = parse_size(args.size)
-        result = bench.bench(
-            args.scene,
-            size,
-            args.frames,
-            settings,
-            args.warmup,
-            path,
-            _progress("bench"),
-            args.compare_every,
-            args.stride,
-        )
+        with bench.FrameProgress("bench") as progress:
+            result = bench.bench(
+                args.scene,
+                size,
+                args.frames,
+                settings,
+                args.warmup,
+                path,
+                progress,
+                args.compare_every,
+                args.stride,
+            )
         from app.lab.results import write_json
 
         write_json(args.out, result)
@@ -284,7 +273,8 @@ def _run(
             )
         out_dir = Path(getattr(args, "out_dir", "out"))
         size = parse_size(getattr(args, "size", "1280x720"))
-        summary = bench.demo(args.scene, out_dir, size, settings, progress=_progress("walkthrough"))
+        with bench.FrameProgress("walkthrough") as progress:
+            summary = bench.demo(args.scene, out_dir, size, settings, progress=progress)
         print(
             f"{summary['frames']} frames, {summary['fps_median']:.1f} fps median; "
             f"{len(summary['screenshots'])} screenshots and summary.json in {out_dir}/"

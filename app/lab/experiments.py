@@ -9,15 +9,19 @@ end through :mod:`app.lab.report`. Runs go one after another: timings of runs th
 from __future__ import annotations
 
 import json
-import sys
+import logging
 from pathlib import Path
 
-from app.lab.bench import TraceProgress
+from app.fileio import atomic_write_png
+from app.lab.bench import CliBar, TraceProgress
 from app.lab.photon_bench import table_runs, tables, write_peer
+from app.lab.plots import RunTimes, run_times_plot
 from app.lab.reference import ConvergedPhotons
 from app.lab.report import report
 from app.lab.results import write_json
 from app.lab.runs import Run, bench_run
+
+log = logging.getLogger(__name__)
 
 
 def tcr_runs() -> list[Run]:
@@ -142,22 +146,31 @@ EXPERIMENTS = {"tcr": tcr_runs, "cps": cps_runs, "photons": photon_runs}
 
 def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
     """Run every benchmark of an experiment (names containing ``only``, if given) into
-    ``out_dir``; returns the tables."""
+    ``out_dir``, with their frame times plotted in ``frame_times.png``; returns the tables."""
     out = Path(out_dir)
     runs = [r for r in EXPERIMENTS[which]() if not only or only in r.name]
     files: list[str | Path] = []
+    times: list[RunTimes] = []
     converged = ConvergedPhotons(TraceProgress())  # traced once for all the runs that compare
-    for index, run in enumerate(runs, start=1):
-        print(f"[{index}/{len(runs)}] {run.name}: {run.command()}", file=sys.stderr, flush=True)
-        result = bench_run(run, converged)
-        target = out / f"{run.name}.json"
-        write_json(target, result)
-        files.append(target)
-        print(
-            f"    {result.fps_median:.2f} fps, {result.frame_ms.median:.1f} ms",
-            file=sys.stderr,
-            flush=True,
-        )
+    with CliBar(f"experiments {which}", "run", mininterval=0.0) as bar:
+        for index, run in enumerate(runs):
+            bar.count(index, len(runs), run.name)
+            log.info("%s: %s", run.name, run.command())
+            result = bench_run(run, converged)
+            target = out / f"{run.name}.json"
+            write_json(target, result)
+            files.append(target)
+            times.append(RunTimes.of(run.name, result))
+            log.info("%s: %.2f fps, %.1f ms", run.name, result.fps_median, result.frame_ms.median)
+    picture = out / "frame_times.png"
+    atomic_write_png(picture, run_times_plot(times, f"experiments {which}"))
+    text = _tables(which, out, only, runs, files)
+    return text + f"\n\nFrame time per run (and error against time) plotted in {picture}\n"
+
+
+def _tables(
+    which: str, out: Path, only: str | None, runs: list[Run], files: list[str | Path]
+) -> str:
     if which == "photons":
         # Every run in the folder, so a table can be completed by later --only runs.
         results = {
@@ -167,7 +180,7 @@ def run_all(which: str, out_dir: str | Path, only: str | None = None) -> str:
         }
         text = tables(results)
         if not only or "peer" in only:
-            print("peer comparison with scipy cKDTree", file=sys.stderr, flush=True)
+            log.info("peer comparison with scipy cKDTree")
             text += "\n\n" + write_peer(out)
         return text
     groups = sorted({g for r in runs for g in r.groups})

@@ -14,16 +14,16 @@ import io
 import itertools
 import json
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
-from PIL import Image, ImageDraw
 
 from app.fileio import atomic_write_json, atomic_write_png, atomic_write_text
-from app.lab.bench import TraceProgress, bench
+from app.lab.bench import CliBar, TraceProgress, bench
+from app.lab.plots import finite, pareto, pareto_plot
 from app.lab.reference import ConvergedPhotons
 from app.lab.report import markdown
 from app.lab.results import BenchResult
@@ -190,26 +190,6 @@ class StudyRow:
 FIELDS = tuple(f.name for f in fields(StudyRow))
 
 
-def pareto(rows: list[dict], cost: str = "frame_ms", error: str = "flip") -> list[str]:
-    """Names of the rows no other row beats on both frame time and error (lower is better)."""
-    ok = [r for r in rows if _finite(r.get(cost)) and _finite(r.get(error))]
-    front = []
-    for r in ok:
-        dominated = any(
-            o[cost] <= r[cost]
-            and o[error] <= r[error]
-            and (o[cost] < r[cost] or o[error] < r[error])
-            for o in ok
-        )
-        if not dominated:
-            front.append(r["name"])
-    return sorted(front, key=lambda n: next(r[cost] for r in ok if r["name"] == n))
-
-
-def _finite(v: object) -> bool:
-    return isinstance(v, (int, float)) and math.isfinite(v)
-
-
 def run_study(
     which: str,
     out_dir: str | Path,
@@ -262,7 +242,7 @@ def to_csv(rows: list[dict]) -> str:
 
 
 def _fmt(v: object, spec: str) -> str:
-    if not _finite(v):
+    if not finite(v):
         return "identical" if v == math.inf else "-"
     return format(v, spec)
 
@@ -313,57 +293,18 @@ def to_markdown(which: str, matrix: Matrix, rows: list[dict], front: list[str]) 
 
 
 def plot(rows: list[dict], front: list[str], title: str, size=(900, 600)) -> np.ndarray:
-    """Frame time (x) against FLIP (y), every run a dot, the Pareto front joined in red and
-    named (with full quality and the masks); the other runs' names are in report.md."""
-    img = Image.new("RGB", size, (255, 255, 255))
-    d = ImageDraw.Draw(img)
-    pts = [r for r in rows if _finite(r.get("frame_ms")) and _finite(r.get("flip"))]
-    left, top, right, bottom = 80, 40, size[0] - 30, size[1] - 60
-    d.rectangle((left, top, right, bottom), outline=(0, 0, 0))
-    d.text((left, 10), title + ": frame time against error (FLIP)", fill=(0, 0, 0))
-    d.text(((left + right) // 2 - 40, bottom + 30), "frame time (ms)", fill=(0, 0, 0))
-    d.text((5, top - 20), "FLIP", fill=(0, 0, 0))
-    if not pts:
-        return np.asarray(img)
-    xs = [r["frame_ms"] for r in pts]
-    ys = [r["flip"] for r in pts]
-    x0, x1 = 0.0, max(xs) * 1.1
-    y0, y1 = 0.0, max(max(ys) * 1.1, 1e-3)
-
-    def to_px(x: float, y: float) -> tuple[float, float]:
-        return (
-            left + (x - x0) / (x1 - x0) * (right - left),
-            bottom - (y - y0) / (y1 - y0) * (bottom - top),
-        )
-
-    for k in range(5):  # axis ticks
-        x = x0 + (x1 - x0) * k / 4
-        y = y0 + (y1 - y0) * k / 4
-        px, _ = to_px(x, y0)
-        _, py = to_px(x0, y)
-        d.text((px - 10, bottom + 8), f"{x:.0f}", fill=(60, 60, 60))
-        d.text((left - 55, py - 6), f"{y:.3f}", fill=(60, 60, 60))
-    line = [to_px(r["frame_ms"], r["flip"]) for name in front for r in pts if r["name"] == name]
-    if len(line) > 1:
-        d.line(line, fill=(220, 30, 30), width=2)
-    for r in pts:
-        px, py = to_px(r["frame_ms"], r["flip"])
-        on = r["name"] in front
-        colour = (220, 30, 30) if on else (40, 90, 200)
-        d.ellipse((px - 4, py - 4, px + 4, py + 4), fill=colour)
-        if on or r["name"] in (FULL, "black-mask", "blur-mask"):  # the rest: see report.md
-            d.text((px + 6, py - 6), r["name"], fill=colour)
-    return np.asarray(img)
+    """Frame time (x) against FLIP (y): every run a dot, the Pareto front a red step line
+    through its runs, named (with full quality and the masks); the other runs' names are in
+    report.md. An HxWx3 array."""
+    return pareto_plot(rows, front, title, size, named=(FULL, "black-mask", "blur-mask"))
 
 
-def print_progress(done: int, total: int, name: str) -> None:
-    width = 30
-    filled = round(width * (done - 1) / max(1, total))
-    print(
-        f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name:<40}",
-        end="",
-        file=sys.stderr,
-        flush=True,
-    )
-    if done == total:
-        print(file=sys.stderr)
+class RunProgress(CliBar):
+    """:func:`run_study`'s ``progress(index, total, name)`` (before each run, from 1) as a bar
+    of runs with the running one's name; leaving ``with`` shows them all done."""
+
+    def __init__(self, file: TextIO | None = None) -> None:
+        super().__init__("study", "run", file, mininterval=0.0)  # a run takes minutes
+
+    def __call__(self, index: int, total: int, name: str) -> None:
+        self.count(index - 1, total, name)
