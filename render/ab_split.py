@@ -167,7 +167,7 @@ class ABSplitPass(RenderPass):
         self.caption_rects: list[tuple[int, int, int, int] | None] = []
 
     def configure(self, settings, scene, frame) -> bool:
-        return getattr(frame, "split", None) is not None
+        return frame.split is not None
 
     def _caption(self, side: int, text: str, size: int, room: int) -> moderngl.Texture | None:
         """The texture of one side's caption, wrapped to ``room`` px (in steps of 32 px, so a
@@ -191,7 +191,7 @@ class ABSplitPass(RenderPass):
         return tex
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
-        split: SplitFrame = frame.split  # type: ignore[attr-defined]
+        split: SplitFrame = frame.split
         view = split.view
         w, h = res.targets[0].size
         x0, y0 = frame.out_origin
