@@ -126,9 +126,11 @@ def caption_image(text: str, size: int, max_width: int = 1 << 16) -> np.ndarray 
     return np.asarray(img, np.uint8)
 
 
-def caption_size(eye_height: int) -> int:
-    """Caption text height for an eye this tall: readable at a glance, never tiny."""
-    return max(14, eye_height // 28)
+def caption_size(eye: tuple[int, int]) -> int:
+    """Caption text height for an eye of (width, height) pixels: readable at a glance, never
+    tiny, and small enough that a caption takes a line or two of its half."""
+    w, h = eye
+    return max(14, min(28, w // 24, h // 24))
 
 
 def caption_rects(
@@ -218,7 +220,7 @@ class ABSplitPass(RenderPass):
 
     def _draw_captions(self, frame: FrameContext, view: SplitView, eye: tuple[int, int]) -> None:
         w, h = eye
-        size = caption_size(h)
+        size = caption_size(eye)
         d = view.divider_px(w)
         rooms = (d - CAPTION_GAP - EYE_MARGIN, w - d - CAPTION_GAP - EYE_MARGIN)
         texs = [

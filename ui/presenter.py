@@ -184,24 +184,31 @@ class Presenter(QObject):
         self.view.playing = True
 
     # -- drawing (called by the view's paintGL, its GL context current) ------------------------
-    def render(self, renderer: Renderer, frame: FrameInput, fbo: moderngl.Framebuffer) -> None:
-        """The A/B frame into ``fbo``; the normal frame when there is no scene, or after the
-        full-quality half failed (said once in the log and the status bar)."""
+    def render(
+        self,
+        renderer: Renderer,
+        frame: FrameInput,
+        fbo: moderngl.Framebuffer,
+        origin: tuple[int, int] = (0, 0),
+    ) -> None:
+        """The A/B frame into ``fbo`` with the eyes' lower-left at ``origin``; the normal frame
+        when there is no scene, or after the full-quality half failed (said once in the log
+        and the status bar)."""
         scene = self.view.session.scene
         if scene is None or self._failed or self.view.ctx is None:
-            renderer.render(frame, fbo)
+            renderer.render(frame, fbo, origin)
             return
         try:
             if self._ab is None:
                 self._ab = ABFrame(self.view.ctx)
             self.split.left = self.caption
-            self._ab.render(renderer, scene, frame, fbo, self.split)
+            self._ab.render(renderer, scene, frame, fbo, self.split, origin)
         except Exception as exc:  # noqa: BLE001 - a demo aid must never take the view down
             log.exception("presenter mode: the full-quality half failed")
             self._failed = True
             self.status(f"Presenter mode cannot draw the comparison: {exc}", 10000)
             fbo.use()
-            renderer.render(frame, fbo)
+            renderer.render(frame, fbo, origin)
 
     def release_gl(self) -> None:
         """Release the full-quality half (the view's GL context current)."""
@@ -240,9 +247,18 @@ class Presenter(QObject):
         self.fps_label.move(max(0, self.view.width() - self.fps_label.width() - margin), margin)
 
     # -- the divider drag (events of the view) -------------------------------------------------
+    def _eyes(self) -> tuple[float, float]:
+        """The left eye's left edge and the eye width, in view (logical) pixels."""
+        layout = getattr(self.view, "eye_layout", None)  # letterboxed eyes, where the view has them
+        if callable(layout):
+            ratio = self.view.devicePixelRatioF() or 1.0
+            eyes = layout()
+            return eyes.x / ratio, max(1.0, eyes.eye_width / ratio)
+        return 0.0, max(1.0, self.view.width() / 2.0)
+
     def _divider_x(self, eye: int) -> float:
-        eye_w = self.view.width() / 2.0
-        return eye * eye_w + self.split.divider * eye_w
+        x0, eye_w = self._eyes()
+        return x0 + (eye + self.split.divider) * eye_w
 
     def _near_divider(self, x: float) -> int | None:
         """The eye whose divider is within GRAB_PX of ``x`` (view pixels), or None."""
@@ -275,9 +291,9 @@ class Presenter(QObject):
             return True
         if kind == QEvent.Type.MouseMove:
             if self.dragging:
-                eye_w = max(1.0, self.view.width() / 2.0)
-                eye = 1 if x >= eye_w else 0
-                self.set_divider((x - eye * eye_w) / eye_w)
+                x0, eye_w = self._eyes()
+                eye = 1 if x >= x0 + eye_w else 0
+                self.set_divider((x - x0 - eye * eye_w) / eye_w)
                 return True
             if self._near_divider(x) is not None:
                 self.view.setCursor(Qt.CursorShape.SplitHCursor)
