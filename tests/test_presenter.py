@@ -178,7 +178,10 @@ def test_f5_splits_the_view_and_m_and_the_divider_keys_and_drag_work(
     assert p.active and p.actions["presenter"].isChecked()
     # The readout: big (48 px) in the top-right corner, an integer of frames per second.
     label = p.fps_label
-    qtbot.waitUntil(lambda: re.fullmatch(r"\d+ fps", label.text()) is not None, timeout=5000)
+    qtbot.waitUntil(lambda: "ms without" in label.text(), timeout=5000)
+    fps, detail = p.readout_lines()
+    assert re.fullmatch(r"\d+ fps", fps) and label.text().startswith(fps)
+    assert re.fullmatch(r"GPU per frame: \d+ ms with, \d+ ms without", detail)
     assert label.isVisible() and label.font().pixelSize() == 48
     assert label.geometry().right() > VIEW_W - 40 and label.geometry().top() < 40
     # M: the next mitigation mode, and the caption says it.

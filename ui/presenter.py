@@ -34,7 +34,9 @@ log = logging.getLogger(__name__)
 DIVIDER_STEP = 0.05  # [ and ]: a twentieth of the eye's width
 GRAB_PX = 8  # the divider is caught within this many pixels of the line
 FPS_PX = 48  # the readout's text height, readable from the back of a room
+DETAIL_PX = 16  # the readout's second line: each half's GPU time
 REFRESH_MS = 250  # the readout's refresh (4 Hz)
+SPLIT_PASSES = ("ab_split", "overlay")  # drawn once over both halves: neither half's cost
 DEMO_SCENE = "corridor"  # the built-in scene of the CPS paper's walk
 
 
@@ -72,6 +74,7 @@ class Presenter(QObject):
         font.setPixelSize(FPS_PX)
         font.setBold(True)
         self.fps_label.setFont(font)
+        self.fps_label.setTextFormat(Qt.TextFormat.RichText)
         self.fps_label.setAttribute(Qt.WidgetAttribute.WA_TransparentForMouseEvents)
         self.fps_label.hide()
         self._timer = QTimer(self)
@@ -227,13 +230,22 @@ class Presenter(QObject):
             self.view.doneCurrent()
 
     # -- the readout ---------------------------------------------------------------------------
-    def readout_text(self) -> str:
-        """The readout: frames per second as shown (both halves drawn), as an integer."""
-        return f"{round(self.view.timer.fps)} fps"
+    def readout_lines(self) -> tuple[str, str]:
+        """The readout: frames per second as shown (both halves are drawn every frame), and
+        what each half took on the GPU in the last frame, as whole numbers."""
+        fps = f"{round(self.view.timer.fps)} fps"
+        renderer = self.view.renderer
+        if self._ab is None or renderer is None or not self._ab.pass_ms():
+            return fps, ""
+        live = sum(ms for name, ms in renderer.pass_ms().items() if name not in SPLIT_PASSES)
+        full = sum(self._ab.pass_ms().values())
+        return fps, f"GPU per frame: {round(live)} ms with, {round(full)} ms without"
 
     def _refresh(self) -> None:
         try:
-            self.fps_label.setText(self.readout_text())
+            fps, detail = self.readout_lines()
+            small = f"<br><span style='font-size:{DETAIL_PX}px; font-weight:normal'>{detail}</span>"
+            self.fps_label.setText(fps + (small if detail else ""))
             self.fps_label.adjustSize()
             self._place_label()
             scene = self.view.session.scene
