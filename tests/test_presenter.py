@@ -3,6 +3,7 @@ fps readout and the corridor walk in the real window (pytest-qt, Xvfb)."""
 
 from __future__ import annotations
 
+import logging
 import re
 
 import numpy as np
@@ -260,3 +261,24 @@ def test_present_the_corridor_walk_loads_it_and_starts_the_walk(window, qtbot):
     assert p.active
     qtbot.waitUntil(lambda: window.view.playing, timeout=30000)
     assert window.session.scene.name == "corridor"
+
+
+def test_a_failing_comparison_gives_the_normal_picture_and_says_so(
+    window, qtbot, monkeypatch, caplog
+):
+    view, p = window.view, window.presenter
+    frames_later(qtbot, window)
+    normal = grab(window)
+
+    def broken(*_args, **_kwargs) -> None:  # say, the GPU has no memory for a second scene
+        raise MemoryError("out of GPU memory for the full-quality half")
+
+    monkeypatch.setattr(ABFrame, "render", broken)
+    qtbot.keyClick(view, Qt.Key.Key_F5)
+    frames_later(qtbot, window, 3)
+    assert p.active and "cannot draw the comparison" in window.statusBar().currentMessage()
+    assert np.array_equal(grab(window), normal)  # the view keeps showing the scene
+    records = [r for r in caplog.records if r.levelno >= logging.ERROR]
+    assert len(records) == 1 and "full-quality half failed" in records[0].getMessage()
+    for r in records:
+        r.expected = True  # this test's own error
