@@ -33,10 +33,15 @@ REFERENCE_PASSES = tuple(t for t in PASS_TYPES if t not in (OverlayPass, ABSplit
 
 
 class ABFrame:
-    """Draws A/B frames on ``ctx`` (every call with that context current)."""
+    """Draws A/B frames on ``ctx`` (every call with that context current).
 
-    def __init__(self, ctx: moderngl.Context) -> None:
+    ``stream_in``: huge texture sets arrive over the next frames, as in the live view (see
+    :class:`render.texture_stream.TextureStreamer`), so turning the split on never freezes the
+    window; the full-quality half is then at its finest once they are in."""
+
+    def __init__(self, ctx: moderngl.Context, stream_in: bool = False) -> None:
         self.ctx = ctx
+        self.stream_in = stream_in
         self.renderer: Renderer | None = None  # the full-quality half's own renderer
         self._scene: Scene | None = None
         self._color: moderngl.Texture | None = None
@@ -62,7 +67,7 @@ class ABFrame:
             self.renderer = Renderer(self.ctx, settings, REFERENCE_PASSES)
         self.renderer.settings = settings
         if scene is not self._scene:
-            self.renderer.set_scene(scene)
+            self.renderer.set_scene(scene, stream_in=self.stream_in)
             self._scene = scene
         self.renderer.set_photons(live.photons.photons)
         eye = frame.eyes[0]

@@ -203,7 +203,7 @@ class Presenter(QObject):
             return
         try:
             if self._ab is None:
-                self._ab = ABFrame(self.view.ctx)
+                self._ab = ABFrame(self.view.ctx, stream_in=True)  # as the view's own scene
             self.split.left = self.caption
             self._ab.render(renderer, scene, frame, fbo, self.split, origin)
         except Exception as exc:  # noqa: BLE001 - a demo aid must never take the view down
