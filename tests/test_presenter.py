@@ -173,10 +173,13 @@ def test_f5_splits_the_view_and_m_and_the_divider_keys_and_drag_work(
     window, qtbot, compare_reference
 ):
     view, p = window.view, window.presenter
+    (menu,) = [a.menu() for a in window.menuBar().actions() if a.text() == "&View"]
+    entry = {a.text(): a for a in menu.actions()}["Presenter mode"]
+    assert entry.shortcut().toString() == "F5" and entry.isCheckable()
     frames_later(qtbot, window)
     normal = grab(window)
     qtbot.keyClick(view, Qt.Key.Key_F5)
-    assert p.active and p.actions["presenter"].isChecked()
+    assert p.active and entry.isChecked()
     # The readout: big (48 px) in the top-right corner, an integer of frames per second.
     label = p.fps_label
     qtbot.waitUntil(lambda: "ms without" in label.text(), timeout=5000)

@@ -99,7 +99,8 @@ class Presenter(QObject):
             return a
 
         menu.addSeparator()
-        mode = action("presenter", "Presenter mode (with / without side by side)", None, "F5")
+        mode = action("presenter", "Presenter mode", None, "F5")
+        mode.setToolTip("Each eye: the current technique left of a divider, full quality right")
         mode.setCheckable(True)
         mode.toggled.connect(self.set_active)
         action("mitigation", "Next mitigation mode", self.next_mitigation, "M")
@@ -114,9 +115,6 @@ class Presenter(QObject):
                 self.actions[key].setEnabled(self.active)
 
     # -- the mode ------------------------------------------------------------------------------
-    def toggle(self) -> None:
-        self.set_active(not self.active)
-
     def set_active(self, on: bool) -> None:
         """Presenter mode on or off (F5); off releases the full-quality half's GPU objects."""
         on = bool(on)
