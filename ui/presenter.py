@@ -158,7 +158,7 @@ class Presenter(QObject):
         self.settings.set("cps.mode", mode or choices[0])
         self.on_change("cps.mode")
         name = (meta.get("choice_labels") or {}).get(self.settings.cps.mode, self.settings.cps.mode)
-        self.status(f"Mitigation mode: {name} ({self.caption})", 6000)
+        self.status(f"Mitigation mode: {name}. {self.caption}", 6000)
 
     def step_divider(self, direction: int) -> None:
         """[ / ]: the divider a step left or right (presenter mode only)."""
