@@ -86,6 +86,7 @@ TEXTURE_UNITS = {
             "left_result",
             "depth",
             "bounds",
+            "ab_reference",  # the presenter's split: the full-quality frame
             "eye_color",
             "text",
             "heat",

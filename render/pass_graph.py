@@ -74,6 +74,7 @@ class FrameContext:
     tint: bool = False
     cps: Any = None  # render.cps.CpsFrame: caps, frame index, edge-ray hits
     edge_hits: Sequence | None = None  # world points per eye, drawn with the level map
+    split: Any = None  # render.ab_split.SplitFrame: the presenter's A/B split (None: none)
 
 
 # Resource name -> where the renderer's targets keep it: (table, attribute).

@@ -20,6 +20,7 @@ from app.photon_map import PhotonMap
 from app.scene import Scene
 from app.settings import Settings
 from app.tcr import finest_per_texture
+from render.ab_split import ABSplitPass, SplitFrame
 from render.constants import CPS_LEVELS
 from render.cps import (
     CpsFilterPass,
@@ -63,6 +64,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     EmissivePass,
     ForwardPass,
     PresentPass,
+    ABSplitPass,
     OverlayPass,
 )
 
@@ -93,6 +95,7 @@ class Renderer:
     emissive = _Pass[EmissivePass]()
     forward = _Pass[ForwardPass]()
     present = _Pass[PresentPass]()
+    ab_split = _Pass[ABSplitPass]()
     overlay = _Pass[OverlayPass]()
 
     def __init__(
@@ -163,7 +166,11 @@ class Renderer:
 
     # -- the frame -----------------------------------------------------------------------------
     def frame_context(
-        self, frame: FrameInput, out: moderngl.Framebuffer, origin: tuple[int, int] = (0, 0)
+        self,
+        frame: FrameInput,
+        out: moderngl.Framebuffer,
+        origin: tuple[int, int] = (0, 0),
+        split: SplitFrame | None = None,
     ) -> FrameContext:
         """The frame's inputs as every pass sees them."""
         r = self.settings.render
@@ -186,6 +193,7 @@ class Renderer:
             tint=self.settings.tcr.tint,
             cps=CpsFrame(s, caps, self.frames, list(frame.edge_hits or [])),
             edge_hits=frame.edge_hits,
+            split=split,
         )
 
     def configure(self, ctx: FrameContext) -> list[RenderPass]:
@@ -201,12 +209,18 @@ class Renderer:
         return enabled
 
     def render(
-        self, frame: FrameInput, out: moderngl.Framebuffer, origin: tuple[int, int] = (0, 0)
+        self,
+        frame: FrameInput,
+        out: moderngl.Framebuffer,
+        origin: tuple[int, int] = (0, 0),
+        split: SplitFrame | None = None,
     ) -> None:
+        """One stereo frame into ``out``; ``split``: the presenter's A/B split over it (see
+        ``render.ab_frame``)."""
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
         self.cps.ensure(self.targets)
-        ctx = self.frame_context(frame, out, origin)
+        ctx = self.frame_context(frame, out, origin, split)
         enabled = self.configure(ctx)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
+from typing import TYPE_CHECKING
 
 import moderngl
 from PyQt6.QtCore import QPointF, Qt, QTimer, pyqtSignal
@@ -22,6 +23,9 @@ from app.session import Session
 from app.stats import FrameTimer, overlay_lines
 from render.context import GLUnavailableError, check
 from render.renderer import Renderer
+
+if TYPE_CHECKING:
+    from ui.presenter import Presenter
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +73,7 @@ class StereoView(QOpenGLWidget):
         self._play_frame = 0
         self.recording: list = []
         self.is_recording = False
+        self.presenter: Presenter | None = None  # draws the frame while presenting (F5)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMouseTracking(True)
         self.setMinimumSize(320, 180)
@@ -113,7 +118,10 @@ class StereoView(QOpenGLWidget):
                 self.timer.fps, self.renderer.pass_ms(), self.session.settings, frame.gaze_fixed
             )
             self.renderer.overlay.set_text_image(text_image(lines))
-        self.renderer.render(frame, fbo)
+        if self.presenter is not None and self.presenter.active:
+            self.presenter.render(self.renderer, frame, fbo)
+        else:
+            self.renderer.render(frame, fbo)
         self.timer.tick(now)
         self.frame_log.record(now, self.renderer.pass_ms())
 
@@ -189,6 +197,8 @@ class StereoView(QOpenGLWidget):
             if self._probe is not None:
                 self._probe.release()
                 self._probe = None
+            if self.presenter is not None:
+                self.presenter.release_gl()
             self.renderer.release()
             self.renderer = None
             self.doneCurrent()

@@ -48,6 +48,7 @@ from ui.frame_graph import frame_graph_dock
 from ui.gl_view import StereoView, default_format
 from ui.panels import EvaluationBar, SettingsPanel
 from ui.photon_panel import PhotonPanel
+from ui.presenter import Presenter
 from ui.quality_panel import QualityPanel
 from ui.survey_runner import open_session_dialog
 from ui.tcr_panel import TcrPanel
@@ -148,6 +149,10 @@ class MainWindow(QMainWindow):
         action(v, "Play walkthrough", self.toggle_play, "P")
         action(v, "Record path", self.toggle_recording, "Ctrl+R")
         v.addAction(self.frame_dock.toggleViewAction())
+        self.presenter = Presenter(
+            self.view, self.settings, self._setting_changed, self.statusBar().showMessage, self.load
+        )
+        self.presenter.add_actions(v, self)  # F5 presenter mode, M mitigation, [ ] divider
         self.viewpoint_menu = bar.addMenu("View&points")
         action(self.viewpoint_menu, "Save viewpoint…", self.save_viewpoint, "Ctrl+B")
         self.viewpoint_menu.addSeparator()
