@@ -712,6 +712,9 @@ def create_app(argv: list[str] | None = None) -> QApplication:
 
 
 def _scrolling(panel: QWidget) -> QScrollArea:
+    """The panel in a scroll area (itself, when it is one already)."""
+    if isinstance(panel, QScrollArea):
+        return panel
     area = QScrollArea()
     area.setWidget(panel)
     area.setWidgetResizable(True)
