@@ -372,3 +372,15 @@ def test_eye_layout(view, eyes):
     for eye in (0, 1):
         x, y = layout.from_eye(eye, 0.25, 0.75)
         assert layout.to_eye(x, y) == pytest.approx((0.25, 0.75))
+
+
+def test_the_command_without_a_scene_opens_the_last_one(monkeypatch):
+    """``vrpreview`` alone hands the window no scene (it opens the last one, see
+    ``test_the_window_remembers_its_geometry_panels_and_files``); ``--scene`` still wins."""
+    from app.lab import cli
+
+    monkeypatch.setenv("DISPLAY", os.environ.get("DISPLAY") or ":0")
+    asked: list = []
+    assert cli.main([], lambda scene, settings, path: asked.append(scene) or 0) == 0
+    assert cli.main(["--scene", "corridor"], lambda s, *_: asked.append(s) or 0) == 0
+    assert asked == [None, "corridor"]
