@@ -24,6 +24,7 @@ from tests.test_gui import grab, qimage_to_array, send_mouse
 from tests.test_render import checker_scene
 from ui import window_state
 from ui.main_window import MainWindow, open_main_window
+from ui.prefs import config_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 # Set by the device-pixel-ratio test for its child run of the gaze test.
@@ -239,6 +240,11 @@ def test_panels_beside_or_below_and_back_from_the_view_menu(make_window):
     shot = grab(window)
     x, y, w, h = _eyes_in(shot)
     assert 0.8 <= (w / 2) / h <= 1.0 and x > 10  # bars beside now
+    window.resize(640, 400)  # below, too, the window can be made small
+    _pump(window)
+    assert (window.width(), window.height()) == (640, 400)
+    window.resize(1366, 768)
+    _pump(window)
     # Closed with its title bar's button, the dock comes back from View > Panels.
     window.dock.close()
     _pump(window)
@@ -384,3 +390,19 @@ def test_the_command_without_a_scene_opens_the_last_one(monkeypatch):
     assert cli.main([], lambda scene, settings, path: asked.append(scene) or 0) == 0
     assert cli.main(["--scene", "corridor"], lambda s, *_: asked.append(s) or 0) == 0
     assert asked == [None, "corridor"]
+
+
+def test_a_damaged_preferences_file_gives_a_first_run(make_window):
+    config = config_dir()
+    config.mkdir(parents=True, exist_ok=True)
+    (config / "vrpreview.ini").write_text(
+        "[window]\ngeometry=hello\nstate=42\n[files]\nrecent=7\n"
+        "last_scene=/nowhere/gone.glb\nlast_folder=/nowhere\n",
+        encoding="utf-8",
+    )
+    window = make_window(800, 600)
+    assert not window.restored_geometry and (window.width(), window.height()) == (800, 600)
+    assert window.dock.isVisible()
+    assert [a.text() for a in window.recent_menu.actions()] == ["(no files opened yet)"]
+    assert window_state.last_scene() == "showroom"
+    assert window_state.last_folder() == str(Path.home())

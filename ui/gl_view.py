@@ -127,8 +127,8 @@ class StereoView(QOpenGLWidget):
 
     def eye_layout(self) -> EyeLayout:
         """Where the eyes are drawn, in device pixels (the view's size times its pixel ratio)."""
-        ratio = self.devicePixelRatioF()
-        return eye_layout(round(self.width() * ratio), round(self.height() * ratio))
+        ratio = self.devicePixelRatioF()  # rounded as Qt sizes the framebuffer (half up)
+        return eye_layout(int(self.width() * ratio + 0.5), int(self.height() * ratio + 0.5))
 
     def _update_eye_size(self) -> None:
         layout = self.eye_layout()

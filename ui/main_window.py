@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from PyQt6.QtCore import QBuffer, QEvent, QIODevice, QObject, QRect, QSize, Qt, QTimer
+from PyQt6.QtCore import QBuffer, QByteArray, QEvent, QIODevice, QObject, QRect, QSize, Qt, QTimer
 from PyQt6.QtGui import QAction, QActionGroup, QKeySequence, QSurfaceFormat
 from PyQt6.QtWidgets import (
     QApplication,
@@ -290,9 +290,9 @@ class MainWindow(QMainWindow):
         """Geometry and panel layout of the last run; False on a first run."""
         p = window_state.prefs()
         geometry, state = p.value("window/geometry"), p.value("window/state")
-        restored = bool(geometry) and self.restoreGeometry(geometry)
-        if state:
-            self.restoreState(state)
+        # A hand-edited or foreign file may hold anything there: only Qt's own bytes count.
+        restored = isinstance(geometry, QByteArray) and self.restoreGeometry(geometry)
+        if isinstance(state, QByteArray) and self.restoreState(state):
             self._dock_wanted = not self.dock.isHidden()
         self._dock_moved(self.dockWidgetArea(self.dock))
         return restored

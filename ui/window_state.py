@@ -87,7 +87,9 @@ def recent_files() -> list[str]:
     value = prefs().value("files/recent", [])
     if isinstance(value, str):  # QSettings gives a one-entry list back as a plain string
         value = [value]
-    return [str(v) for v in value or [] if v][:RECENT_MAX]
+    if not isinstance(value, list):  # a hand-edited file: nothing we can use
+        return []
+    return [str(v) for v in value if v and Path(str(v)).is_absolute()][:RECENT_MAX]
 
 
 def remember_opened(name_or_path: str) -> None:
