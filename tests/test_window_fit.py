@@ -225,7 +225,7 @@ def test_letterboxed_eyes_look_as_the_reference(make_window, compare_reference):
     assert np.abs(img.astype(int) - shot[50:350].astype(int)).mean() < 0.5
 
 
-def test_panels_beside_or_below_and_back_from_the_view_menu(make_window):
+def test_panels_beside_or_below_and_back_from_the_view_menu(make_window, qtbot):
     window = make_window(1366, 768)
     view_menu = next(a.menu() for a in window.menuBar().actions() if a.text() == "&View")
     texts = [a.text() for a in view_menu.actions()]
@@ -252,6 +252,16 @@ def test_panels_beside_or_below_and_back_from_the_view_menu(make_window):
     window.panels_action.trigger()
     _pump(window)
     assert window.dock.isVisible()
+    # The same with the keys, from the view.
+    window.activateWindow()
+    qtbot.waitUntil(window.isActiveWindow, timeout=5000)
+    window.view.setFocus()
+    ctrl_shift = Qt.KeyboardModifier.ControlModifier | Qt.KeyboardModifier.ShiftModifier
+    qtbot.keyClick(window.view, Qt.Key.Key_D, ctrl_shift)
+    assert not window.dock.isVisible()
+    qtbot.keyClick(window.view, Qt.Key.Key_D, ctrl_shift)
+    assert window.dock.isVisible()
+    assert not window.view._keys  # D, taken by the shortcut, does not walk sideways
     # Closed, then Tab twice (normal mode and back): it stays closed, as left.
     window.dock.close()
     window.set_normal_mode(True)
