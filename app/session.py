@@ -40,7 +40,7 @@ class Session:
         self.tcr: TcrController | None = None
         self.levels: list[int] | None = None
         self.gazed: int | None = None
-        self.eye_size = (640, 720)
+        self.eye_size = (640, 720)  # the eye viewport (pixels) the gaze ray is cast for
         self.edge: list = []  # CPS: app.cps.SideCaps per eye, from the last tick
         self._frame = -2  # last path frame applied (-2: none)
 
@@ -117,7 +117,7 @@ class Session:
         m = self.motion
         m.move_on, m.move_off, m.window_s = t.move_on, t.move_off, t.window_s
         m.update(dt, self.viewpoint_speed, self.gaze.state.fixed)
-        self.gazed = self.gazed_index(*self.eye_size)
+        self.gazed = self.gazed_index()
         self.edge = self.edge_caps()
         if self.tcr is not None:
             self.levels = [
@@ -192,10 +192,16 @@ class Session:
         )
 
     # -- queries -------------------------------------------------------------------------------
-    def gazed_index(self, eye_width: int = 640, eye_height: int = 720) -> int | None:
-        """Index of the mesh hit by the (cyclopean) gaze ray, or None."""
+    def gazed_index(
+        self, eye_width: int | None = None, eye_height: int | None = None
+    ) -> int | None:
+        """Index of the mesh hit by the (cyclopean) gaze ray, or None; for an eye viewport of
+        ``eye_width`` x ``eye_height`` pixels (default: :attr:`eye_size`, which the window sets
+        from its letterboxed eyes in device pixels and each :meth:`frame_input` updates)."""
         if self.scene is None or self.caster is None:
             return None
+        if eye_width is None or eye_height is None:
+            eye_width, eye_height = self.eye_size
         w = self.walker
         self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
         g = self.gaze.state

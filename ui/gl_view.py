@@ -2,7 +2,9 @@
 
 initializeGL/resizeGL/paintGL hand over to ``render.Renderer``; the widget only turns Qt input
 into session state (keys -> walking, cursor -> gaze, right-drag -> looking) and draws into
-``defaultFramebufferObject()`` at the device pixel ratio.
+``defaultFramebufferObject()`` at the device pixel ratio. The eyes keep a headset's shape
+(``ui.window_state.eye_layout``: letterboxed when the view is far from it); the session's eye
+size, the gaze ray and the cursor mapping all come from that one layout, in device pixels.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from app.session import Session
 from app.stats import FrameTimer, overlay_lines
 from render.context import GLUnavailableError, check
 from render.renderer import Renderer
+from ui.window_state import EyeLayout, eye_layout
 
 if TYPE_CHECKING:
     from ui.presenter import Presenter
@@ -74,7 +77,9 @@ class StereoView(QOpenGLWidget):
         self.recording: list = []
         self.is_recording = False
         self.presenter: Presenter | None = None  # draws the frame while presenting (F5)
-        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+        # Clicks give the view the keyboard; Tab in the panels passes it by (in the view, Tab
+        # toggles the mode).
+        self.setFocusPolicy(Qt.FocusPolicy.ClickFocus)
         self.setMouseTracking(True)
         self.setMinimumSize(320, 180)
         self._tick = QTimer(self)
@@ -105,12 +110,11 @@ class StereoView(QOpenGLWidget):
         if self._pending_photons is not None:
             self.renderer.set_photons(self._pending_photons[0])
             self._pending_photons = None
-        ratio = self.devicePixelRatioF()
-        w, h = max(2, int(self.width() * ratio)), max(1, int(self.height() * ratio))
+        layout = self.eye_layout()
         fbo = self.ctx.detect_framebuffer(self.defaultFramebufferObject())
-        fbo.viewport = (0, 0, w, h)
-        fbo.clear(0.0, 0.0, 0.0, 1.0)
-        frame = self.session.frame_input(w // 2, h)
+        fbo.viewport = (0, 0, layout.view_width, layout.view_height)
+        fbo.clear(0.0, 0.0, 0.0, 1.0)  # the letterbox bars
+        frame = self.session.frame_input(layout.eye_width, layout.eye_height)
         now = time.perf_counter()
         if now - self._text_at > 0.25:  # redraw the statistics text at 4 Hz, not every frame
             self._text_at = now
@@ -119,11 +123,27 @@ class StereoView(QOpenGLWidget):
             )
             self.renderer.overlay.set_text_image(text_image(lines))
         if self.presenter is not None and self.presenter.active:
-            self.presenter.render(self.renderer, frame, fbo)
+            self.presenter.render(self.renderer, frame, fbo, layout.gl_origin)
         else:
-            self.renderer.render(frame, fbo)
+            self.renderer.render(frame, fbo, layout.gl_origin)
         self.timer.tick(now)
         self.frame_log.record(now, self.renderer.pass_ms())
+
+    def resizeGL(self, w: int, h: int) -> None:
+        self._update_eye_size()
+
+    def resizeEvent(self, event) -> None:
+        super().resizeEvent(event)
+        self._update_eye_size()  # the gaze ray of the next tick already uses the new size
+
+    def eye_layout(self) -> EyeLayout:
+        """Where the eyes are drawn, in device pixels (the view's size times its pixel ratio)."""
+        ratio = self.devicePixelRatioF()  # rounded as Qt sizes the framebuffer (half up)
+        return eye_layout(int(self.width() * ratio + 0.5), int(self.height() * ratio + 0.5))
+
+    def _update_eye_size(self) -> None:
+        layout = self.eye_layout()
+        self.session.eye_size = (layout.eye_width, layout.eye_height)
 
     def set_scene(self, scene: Scene) -> None:
         """Swap the scene; the GPU upload happens in the next paintGL (context current)."""
@@ -156,10 +176,9 @@ class StereoView(QOpenGLWidget):
         try:
             if self._probe is None:
                 self._probe = QualityProbe(self.ctx)
-            ratio = self.devicePixelRatioF()
-            w, h = max(2, int(self.width() * ratio)), max(1, int(self.height() * ratio))
-            frame = self.session.frame_input(w // 2, h)
-            fov = self.session.camera.horizontal_fov_deg(w // 2, h)
+            layout = self.eye_layout()
+            frame = self.session.frame_input(layout.eye_width, layout.eye_height)
+            fov = self.session.camera.horizontal_fov_deg(layout.eye_width, layout.eye_height)
             report = self._probe.measure(self.renderer, self.session.scene, photons, frame, fov)
             self.renderer.overlay.set_heat_map(report["heat"])
         finally:
@@ -244,7 +263,10 @@ class StereoView(QOpenGLWidget):
         super().focusOutEvent(event)
 
     def _set_gaze_from(self, pos: QPointF) -> None:
-        u, v = self.session.gaze.from_view_pixel(pos.x(), pos.y(), self.width(), self.height())
+        ratio = self.devicePixelRatioF()
+        layout = self.eye_layout()
+        self.session.eye_size = (layout.eye_width, layout.eye_height)
+        u, v = layout.to_eye(pos.x() * ratio, pos.y() * ratio)
         self.session.gaze.set_cursor(u, v)
 
     def mouseMoveEvent(self, event: QMouseEvent) -> None:

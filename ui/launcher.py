@@ -14,7 +14,7 @@ from app.paths import CameraPath
 from app.settings import Settings
 
 
-def open_window(scene: str, settings: Settings, path: CameraPath | None) -> int:
+def open_window(scene: str | None, settings: Settings, path: CameraPath | None) -> int:
     from ui.main_window import run  # Qt from here on
 
     return int(run(scene, settings, path))

@@ -1,8 +1,11 @@
 """Main window: the stereo view, panels, the evaluation bar, files, screenshots, viewpoints.
 
 Evaluation mode shows panels and the evaluation bar; normal mode shows only the scene (Tab
-toggles). Loading a scene runs on a worker thread behind a progress dialog; a file that cannot
-be loaded gives an error dialog and the current scene stays.
+toggles while the view has the keyboard focus; elsewhere Tab moves between controls). The
+panels scroll, so the window fits a laptop screen; they sit beside or below the view (View
+menu), and the window remembers its geometry, the panels' layout, the last scene and the recent
+files (``ui.window_state``). Loading a scene runs on a worker thread behind a progress
+dialog; a file that cannot be loaded gives an error dialog and the current scene stays.
 """
 
 from __future__ import annotations
@@ -17,16 +20,19 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from PyQt6.QtCore import QBuffer, QEvent, QIODevice, QObject, Qt, QTimer
-from PyQt6.QtGui import QAction, QKeySequence, QSurfaceFormat
+from PyQt6.QtCore import QBuffer, QByteArray, QEvent, QIODevice, QObject, QRect, QSize, Qt, QTimer
+from PyQt6.QtGui import QAction, QActionGroup, QKeySequence, QSurfaceFormat
 from PyQt6.QtWidgets import (
     QApplication,
     QDockWidget,
     QFileDialog,
+    QFrame,
     QInputDialog,
     QMainWindow,
     QMessageBox,
     QProgressDialog,
+    QScrollArea,
+    QSizePolicy,
     QTabWidget,
     QWidget,
 )
@@ -42,7 +48,7 @@ from app.session import Session
 from app.settings import Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
 from render.texture_stream import prepare_textures
-from ui import guard
+from ui import guard, window_state
 from ui.cps_panel import CpsPanel
 from ui.frame_graph import frame_graph_dock
 from ui.gl_view import StereoView, default_format
@@ -100,25 +106,52 @@ class MainWindow(QMainWindow):
             self.settings, self._photon_stats, on_change=self._setting_changed
         )
         self.panel.on_change = self._setting_changed
-        tabs = QTabWidget()
-        tabs.addTab(self.tcr_panel, "TCR")
-        tabs.addTab(self.cps_panel, "CPS")
-        tabs.addTab(self.photon_panel, "Photons")
+        self.tabs = tabs = QTabWidget()
+        tabs.setUsesScrollButtons(True)  # many tabs in a narrow dock: arrows, not a wider dock
+        self.add_panel(self.tcr_panel, "TCR")
+        self.add_panel(self.cps_panel, "CPS")
+        self.add_panel(self.photon_panel, "Photons")
         self.quality_panel = QualityPanel(
             lambda: self.view.measure_quality(self._photons_shown), self.view.show_heat_map
         )
-        tabs.addTab(self.quality_panel, "Quality")
-        tabs.addTab(self.panel, "Settings")
+        self.add_panel(self.quality_panel, "Quality")
+        self.add_panel(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)
         self.dock.setObjectName("evaluation-panels")
         self.dock.setWidget(tabs)
+        self.dock.setAllowedAreas(
+            Qt.DockWidgetArea.RightDockWidgetArea
+            | Qt.DockWidgetArea.BottomDockWidgetArea
+            | Qt.DockWidgetArea.LeftDockWidgetArea
+        )
         self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, self.dock)
+        self._dock_wanted = True  # shown again when evaluation mode comes back
+        self._eval_state = None  # the panels' layout in evaluation mode, kept in normal mode
         self.eval_bar = EvaluationBar(self._poll)
+        # Long texts (a gazed object's name) are cut, never widen the window.
+        self.eval_bar.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.statusBar().addPermanentWidget(self.eval_bar, 1)
         self.frame_dock = frame_graph_dock(self, self.view.frame_log, self.settings)  # F3
         self._build_menus()
         self._update_title()
         QApplication.instance().installEventFilter(self)
+        self._scroll_panels()
+        self.restored_geometry = self.restore_window()
+        self.view.setFocus()  # the keys walk from the start (the view takes no Tab focus)
+
+    def add_panel(self, panel: QWidget, title: str) -> None:
+        """A tab in the panels' dock; its page scrolls when the dock is smaller than it."""
+        self.tabs.addTab(_scrolling(panel), title)
+
+    def _scroll_panels(self) -> None:
+        """Every tab page scrolls, also one added with ``self.tabs.addTab`` directly."""
+        for i in range(self.tabs.count()):
+            page = self.tabs.widget(i)
+            if isinstance(page, QScrollArea):
+                continue
+            title = self.tabs.tabText(i)
+            self.tabs.removeTab(i)
+            self.tabs.insertTab(i, _scrolling(page), title)
 
     # -- menus ---------------------------------------------------------------------------------
     def _build_menus(self) -> None:
@@ -134,6 +167,9 @@ class MainWindow(QMainWindow):
         bar = self.menuBar()
         f = bar.addMenu("&File")
         action(f, "&Open scene…", self.open_dialog, "Ctrl+O")
+        self.recent_menu = f.addMenu("&Recent files")
+        self.recent_menu.aboutToShow.connect(self._refresh_recent)
+        self._refresh_recent()
         built_in = f.addMenu("Built-in scenes")
         for name in scenes.BUILTIN:
             action(built_in, name, lambda _=False, n=name: self.load(n))
@@ -146,6 +182,27 @@ class MainWindow(QMainWindow):
         action(f, "&Quit", self.close, "Ctrl+Q")
         v = bar.addMenu("&View")
         self.mode_action = action(v, "Normal mode (scene only)\tTab", self.toggle_mode)
+        self.panels_action = self.dock.toggleViewAction()
+        self.panels_action.setText("&Panels")
+        self.panels_action.setShortcut(QKeySequence("Ctrl+Shift+D"))
+        self.panels_action.triggered.connect(self._panels_toggled)
+        v.addAction(self.panels_action)
+        self.addAction(self.panels_action)
+        sides = QActionGroup(self)
+        sides.setExclusionPolicy(QActionGroup.ExclusionPolicy.ExclusiveOptional)
+        self.dock_side_actions: dict[str, QAction] = {}
+        for side, text in (
+            ("right", "Panels beside the view"),
+            ("bottom", "Panels below the view"),
+        ):
+            a = action(v, text, lambda _=False, s=side: self.set_dock_side(s))
+            a.setCheckable(True)
+            sides.addAction(a)
+            self.dock_side_actions[side] = a
+        self.dock.dockLocationChanged.connect(self._dock_moved)
+        self._dock_moved(self.dockWidgetArea(self.dock))
+        self.full_screen_action = action(v, "Full screen", self.toggle_full_screen, "F11")
+        v.addSeparator()
         action(v, "Play walkthrough", self.toggle_play, "P")
         action(v, "Record path", self.toggle_recording, "Ctrl+R")
         v.addAction(self.frame_dock.toggleViewAction())
@@ -178,11 +235,11 @@ class MainWindow(QMainWindow):
 
     # -- modes ---------------------------------------------------------------------------------
     def eventFilter(self, obj: QObject, event: QEvent) -> bool:
+        # Tab toggles the mode only in the view; in the panels it moves between controls.
         if (
             event.type() == QEvent.Type.KeyPress
+            and obj is self.view
             and event.key() == Qt.Key.Key_Tab
-            and isinstance(obj, QWidget)
-            and obj.window() is self
         ):
             self.toggle_mode()
             return True
@@ -192,17 +249,102 @@ class MainWindow(QMainWindow):
         self.set_normal_mode(not self.normal_mode)
 
     def set_normal_mode(self, normal: bool) -> None:
+        if normal and not self.normal_mode:
+            self._dock_wanted = not self.dock.isHidden()
+            self._eval_state = self.saveState()
         self.normal_mode = normal
-        for w in (self.dock, self.statusBar(), self.menuBar()):
+        for w in (self.statusBar(), self.menuBar()):
             w.setVisible(not normal)
+        self.dock.setVisible(not normal and self._dock_wanted)
         self.view.session.settings.render.overlay = not normal
         self.view.setFocus()
+
+    def _panels_toggled(self, shown: bool) -> None:
+        """View > Panels (Ctrl+Shift+D): showing them from normal mode goes back to evaluation."""
+        self._dock_wanted = shown
+        if shown and self.normal_mode:
+            self.set_normal_mode(False)
+
+    def set_dock_side(self, side: str) -> None:
+        """The panels beside ("right") or below ("bottom") the view."""
+        area = {
+            "right": Qt.DockWidgetArea.RightDockWidgetArea,
+            "bottom": Qt.DockWidgetArea.BottomDockWidgetArea,
+        }[side]
+        if self.dock.isFloating():
+            self.dock.setFloating(False)
+        self.addDockWidget(area, self.dock)
+        self._dock_moved(area)
+        if side == "bottom":  # a third of the height; the eyes keep the rest
+            self.resizeDocks([self.dock], [self.height() // 3], Qt.Orientation.Vertical)
+        else:
+            self.resizeDocks([self.dock], [min(400, self.width() // 3)], Qt.Orientation.Horizontal)
+        if not self.normal_mode:
+            self._dock_wanted = True
+            self.dock.show()
+
+    def _dock_moved(self, area) -> None:
+        self.dock_side_actions["right"].setChecked(area == Qt.DockWidgetArea.RightDockWidgetArea)
+        self.dock_side_actions["bottom"].setChecked(area == Qt.DockWidgetArea.BottomDockWidgetArea)
+
+    def toggle_full_screen(self) -> None:
+        if self.isFullScreen():
+            self.showNormal()
+        else:
+            self.showFullScreen()
+
+    # -- what the window remembers -------------------------------------------------------------
+    def restore_window(self) -> bool:
+        """Geometry and panel layout of the last run; False on a first run."""
+        p = window_state.prefs()
+        geometry, state = p.value("window/geometry"), p.value("window/state")
+        # A hand-edited or foreign file may hold anything there: only Qt's own bytes count.
+        restored = isinstance(geometry, QByteArray) and self.restoreGeometry(geometry)
+        if isinstance(state, QByteArray) and self.restoreState(state):
+            self._dock_wanted = not self.dock.isHidden()
+        self._dock_moved(self.dockWidgetArea(self.dock))
+        return restored
+
+    def save_window(self) -> None:
+        p = window_state.prefs()
+        p.setValue("window/geometry", self.saveGeometry())
+        state = self._eval_state if self.normal_mode and self._eval_state is not None else None
+        p.setValue("window/state", state if state is not None else self.saveState())
+
+    def fit_to_screen(self) -> None:
+        """A first run's size: 1600x900, or 90% of a smaller screen."""
+        screen = self.screen() or QApplication.primaryScreen()
+        size = QSize(1600, 900)
+        if screen is not None:
+            free = screen.availableGeometry()
+            size = size.boundedTo(QSize(int(free.width() * 0.9), int(free.height() * 0.9)))
+        self.resize_to(size.width(), size.height())
+
+    def resize_to(self, width: int, height: int) -> None:
+        """The window at ``width`` x ``height``, the panels beside the view a third of it wide
+        (400 px at most)."""
+        self.resize(width, height)
+        self.resizeDocks([self.dock], [min(400, width // 3)], Qt.Orientation.Horizontal)
+
+    def _refresh_recent(self) -> None:
+        menu = self.recent_menu
+        menu.clear()
+        files = window_state.recent_files()
+        for i, name in enumerate(files, 1):
+            a = QAction(f"&{i % 10} {Path(name).name}", self)
+            a.setToolTip(name)
+            a.setStatusTip(name)
+            a.triggered.connect(lambda _=False, n=name: self.load(n))
+            menu.addAction(a)
+        if not files:
+            empty = menu.addAction("(no files opened yet)")
+            empty.setEnabled(False)
 
     # -- scenes --------------------------------------------------------------------------------
     def open_dialog(self) -> None:
         patterns = " ".join(f"*{e}" for e in SUPPORTED_EXTENSIONS)
         path, _ = QFileDialog.getOpenFileName(
-            self, "Open scene", "", f"Scenes ({patterns});;All files (*)"
+            self, "Open scene", window_state.last_folder(), f"Scenes ({patterns});;All files (*)"
         )
         if path:
             self.load(path)
@@ -268,6 +410,8 @@ class MainWindow(QMainWindow):
             self.statusBar().showMessage(f"Loading {Path(name).name} cancelled", 8000)
             return
         except (SceneLoadError, OSError, ValueError) as exc:
+            if Path(name).suffix and not Path(name).is_file():
+                window_state.forget_recent(name)  # gone: no longer offered in File > Recent
             self.show_error("Cannot open scene", str(exc))
             return
         except Exception as exc:  # noqa: BLE001 - any loader bug: report it, keep running
@@ -276,6 +420,8 @@ class MainWindow(QMainWindow):
             return
         self.session.set_scene(scene, session_path)
         self.view.set_scene(scene)
+        window_state.remember_opened(name)
+        self._refresh_recent()
         self._update_title()
         self._refresh_viewpoints()
         note = f"Loaded {scene.name}: {scene.triangle_count:,} triangles"
@@ -307,8 +453,9 @@ class MainWindow(QMainWindow):
 
     # -- files ---------------------------------------------------------------------------------
     def save_screenshot(self) -> Path | None:
-        """PNG of both eyes as shown, into the data folder; the path goes to the status bar."""
-        image = self.view.grabFramebuffer()
+        """PNG of both eyes as shown (without the letterbox bars), into the data folder; the
+        path goes to the status bar."""
+        image = self.view.grabFramebuffer().copy(QRect(*self.view.eye_layout().pair_rect()))
         buf = QBuffer()
         buf.open(QIODevice.OpenModeFlag.WriteOnly)
         image.save(buf, "PNG")
@@ -523,6 +670,7 @@ class MainWindow(QMainWindow):
         }
 
     def closeEvent(self, event) -> None:
+        self.save_window()
         QApplication.instance().removeEventFilter(self)
         self.view.release_gl()
         self._loader.shutdown(wait=False, cancel_futures=True)
@@ -571,14 +719,35 @@ def create_app(argv: list[str] | None = None) -> QApplication:
     return app  # type: ignore[return-value]
 
 
-def run(scene_name: str, settings: Settings, path: CameraPath | None = None) -> int:
-    app = create_app()
+def _scrolling(panel: QWidget) -> QScrollArea:
+    """The panel in a scroll area (itself, when it is one already)."""
+    if isinstance(panel, QScrollArea):
+        return panel
+    area = QScrollArea()
+    area.setWidget(panel)
+    area.setWidgetResizable(True)
+    area.setFrameShape(QFrame.Shape.NoFrame)
+    return area
+
+
+def open_main_window(
+    scene_name: str | None, settings: Settings, path: CameraPath | None = None
+) -> MainWindow:
+    """The window as the ``vrpreview`` command opens it: where it was last time (or fitted to
+    the screen), on ``scene_name`` (None: the last scene; the showroom on a first run)."""
     window = MainWindow(settings)
-    window.resize(1600, 900)
+    if not window.restored_geometry:
+        window.fit_to_screen()
     window.show()
-    window.load(scene_name)
+    window.load(scene_name or window_state.last_scene())
     if path is not None:
         window.wait_for_load()
         window.session.path = path
         window.view.playing = True
+    return window
+
+
+def run(scene_name: str | None, settings: Settings, path: CameraPath | None = None) -> int:
+    app = create_app()
+    _window = open_main_window(scene_name, settings, path)  # alive until the loop ends
     return app.exec()

@@ -259,12 +259,9 @@ class Presenter(QObject):
     # -- the divider drag (events of the view) -------------------------------------------------
     def _eyes(self) -> tuple[float, float]:
         """The left eye's left edge and the eye width, in view (logical) pixels."""
-        layout = getattr(self.view, "eye_layout", None)  # letterboxed eyes, where the view has them
-        if callable(layout):
-            ratio = self.view.devicePixelRatioF() or 1.0
-            eyes = layout()
-            return eyes.x / ratio, max(1.0, eyes.eye_width / ratio)
-        return 0.0, max(1.0, self.view.width() / 2.0)
+        ratio = self.view.devicePixelRatioF() or 1.0
+        eyes = self.view.eye_layout()  # letterboxed eyes, in device pixels
+        return eyes.x / ratio, max(1.0, eyes.eye_width / ratio)
 
     def _divider_x(self, eye: int) -> float:
         x0, eye_w = self._eyes()

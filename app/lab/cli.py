@@ -23,14 +23,16 @@ from app.survey.cli import add_parser as add_survey_parser
 from app.survey.cli import run as run_survey
 
 EXIT_USAGE = 2
-# Opens the window: (scene, settings, path or None) -> exit status.
-OpenWindow = Callable[[str, Settings, CameraPath | None], int]
+# Opens the window: (scene or None for the last one, settings, path or None) -> exit status.
+OpenWindow = Callable[[str | None, Settings, CameraPath | None], int]
 
 
-def _common(p: argparse.ArgumentParser, scene_required: bool = False) -> None:
+def _common(
+    p: argparse.ArgumentParser, scene_required: bool = False, default: str | None = "showroom"
+) -> None:
     p.add_argument(
         "--scene",
-        default=None if scene_required else "showroom",
+        default=None if scene_required else default,
         required=scene_required,
         help="built-in scene (showroom, showroom-100, showroom-gi, texture-test, "
         "tcr-cube, corridor) or a model file (.gltf .glb .obj .ply)",
@@ -58,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Stereo VR preview for interiors.",
         epilog="Without a command the window opens (or, with no display, the headless demo runs).",
     )
-    _common(parser)
+    _common(parser, default=None)  # the window: the last scene (the showroom on a first run)
     parser.add_argument("--list-settings", action="store_true", help="print every setting key")
     sub = parser.add_subparsers(dest="command")
     r = sub.add_parser("render", help="render one stereo frame of the path to a PNG")
@@ -274,7 +276,9 @@ def _run(
         out_dir = Path(getattr(args, "out_dir", "out"))
         size = parse_size(getattr(args, "size", "1280x720"))
         with bench.FrameProgress("walkthrough") as progress:
-            summary = bench.demo(args.scene, out_dir, size, settings, progress=progress)
+            summary = bench.demo(
+                args.scene or "showroom", out_dir, size, settings, progress=progress
+            )
         print(
             f"{summary['frames']} frames, {summary['fps_median']:.1f} fps median; "
             f"{len(summary['screenshots'])} screenshots and summary.json in {out_dir}/"
