@@ -104,8 +104,9 @@ def test_the_wheel_in_a_fresh_venv_renders_the_showroom_headless(wheel, tmp_path
     )
     (target / "dependencies.pth").write_text("\n".join(site.getsitepackages()) + "\n")
     proc = subprocess.run(
+        # --ignore-installed: the checkout's own editable install is visible through the .pth
         [sys.executable, "-m", "pip", "--python", str(python), "install", "-q"]
-        + ["--no-deps", "--no-index", str(wheel)],
+        + ["--no-deps", "--no-index", "--ignore-installed", str(wheel)],
         capture_output=True,
         text=True,
         timeout=300,
@@ -146,8 +147,18 @@ def test_the_one_folder_app_renders_with_no_python_and_no_checkout(tmp_path):
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     bundle = tmp_path / "dist" / "vrpreview"
+    try:
+        check_bundle(bundle, tmp_path)
+    finally:  # 400 MB: not kept in pytest's last three temporary folders
+        shutil.rmtree(tmp_path / "dist")
+        shutil.rmtree(tmp_path / "build")
+
+
+def check_bundle(bundle: Path, tmp_path: Path) -> None:
     assert (bundle / "vrpreview").is_file()
     assert not (bundle / "_internal" / "tests").exists()
+    qt_plugins = bundle / "_internal" / "PyQt6" / "Qt6" / "plugins"
+    assert (qt_plugins / "platforms" / "libqxcb.so").is_file()  # the window on X11
     shaders = list((bundle / "_internal" / "render" / "shaders").glob("*.glsl"))
     assert len(shaders) == len(tree_files("*.glsl"))
 
