@@ -3,14 +3,19 @@
     python packaging/dist_check.py dist/vrpreview/vrpreview [--size 640x360]
 
 Runs ``COMMAND render --scene showroom`` from an empty folder in a clean environment (only
-PATH=/usr/bin:/bin and a fresh HOME: no Python, no checkout, no PYTHONPATH), renders the same
-frame with this checkout, and compares the two PNGs. Prints the figures; exits 1 on a mismatch.
+PATH=/usr/bin:/bin and a fresh HOME: no PYTHONPATH, no venv), renders the same frame with this
+checkout, and compares the two PNGs. As root (with ``unshare``) the app runs in a private mount
+namespace where every Python install and the checkout are empty folders, so it must bring all
+it needs. Prints the figures; exits 1 on a mismatch.
 """
 
 from __future__ import annotations
 
 import argparse
+import glob
 import os
+import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -43,20 +48,52 @@ def clean_env(home: Path) -> dict[str, str]:
     return env
 
 
-def render_outside(command: str, size: str, folder: Path) -> tuple[np.ndarray, float, str]:
-    """``command render`` from the empty ``folder``; the picture, the seconds and the output."""
+def python_and_checkout() -> list[Path]:
+    """Folders that hold a Python or this checkout: hidden from the app when it can be."""
+    found = {Path(sys.prefix), Path(sys.base_prefix), ROOT}
+    for pattern in ("/usr/lib/python3*", "/usr/local/lib/python3*"):
+        found.update(Path(p) for p in glob.glob(pattern))
+    system = {Path("/"), Path("/usr"), Path("/usr/local")}  # a Debian Python's prefix is /usr
+    return sorted(p.resolve() for p in found if p.is_dir() and p not in system)
+
+
+def can_isolate() -> bool:
+    """Root with ``unshare``: the app can run in a mount namespace without any Python."""
+    if os.geteuid() != 0 or not shutil.which("unshare"):
+        return False
+    probe = subprocess.run(["unshare", "--mount", "true"], capture_output=True)
+    return probe.returncode == 0
+
+
+def isolated(argv: list[str], hide: list[Path]) -> list[str]:
+    """``argv`` in a private mount namespace where each folder of ``hide`` is empty."""
+    mounts = " && ".join(f"mount -t tmpfs vrpreview-hidden {shlex.quote(str(d))}" for d in hide)
+    script = f'mount --make-rprivate / && {mounts} && exec "$@"'
+    return ["unshare", "--mount", "sh", "-c", script, "sh", *argv]
+
+
+def render_outside(
+    command: str, size: str, folder: Path, isolate: bool = False
+) -> tuple[np.ndarray, float, str]:
+    """``command render`` from the empty ``folder``; the picture, the seconds and the output.
+
+    With ``isolate`` the Python installs and the checkout are hidden (see ``isolated``); an app
+    inside one of them is first copied into ``folder``."""
     home = folder / "home"
     work = folder / "work"
     home.mkdir(parents=True)
     work.mkdir()
+    argv = [command, "render", "--scene", "showroom", "--size", size, "--out", "x.png"]
+    if isolate:
+        hide = python_and_checkout()
+        app = Path(command).resolve()
+        if any(app.is_relative_to(d) for d in hide):
+            shutil.copytree(app.parent, folder / "app", symlinks=True)
+            argv[0] = str(folder / "app" / app.name)
+        argv = isolated(argv, hide)
     start = time.perf_counter()
     proc = subprocess.run(
-        [command, "render", "--scene", "showroom", "--size", size, "--out", "x.png"],
-        cwd=work,
-        env=clean_env(home),
-        capture_output=True,
-        text=True,
-        timeout=300,
+        argv, cwd=work, env=clean_env(home), capture_output=True, text=True, timeout=300
     )
     seconds = time.perf_counter() - start
     output = proc.stdout + proc.stderr
@@ -89,11 +126,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", default="640x360", help="whole side-by-side view, WxH")
     args = parser.parse_args(argv)
     command = Path(args.command).resolve()
+    isolate = can_isolate()
     with tempfile.TemporaryDirectory() as tmp:
-        outside, seconds, output = render_outside(str(command), args.size, Path(tmp))
+        outside, seconds, output = render_outside(str(command), args.size, Path(tmp), isolate)
     inside = render_in_tree(args.size)
     print(f"bundle: {command.parent} ({folder_mb(command.parent):.0f} MB)")
     print(f"render from an empty folder, clean environment: {seconds:.1f} s")
+    if isolate:
+        hidden = ", ".join(str(p) for p in python_and_checkout())
+        print(f"with no Python and no checkout in sight (hidden: {hidden})")
+    else:
+        print("(not root or no unshare: Python installs and the checkout stayed visible)")
     if "embree unavailable" in output:
         print("the bundle fell back to numpy ray casting: embreex is missing from it")
         return 1
