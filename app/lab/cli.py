@@ -58,7 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="vrpreview",
         description="Stereo VR preview for interiors.",
-        epilog="Without a command the window opens (or, with no display, the headless demo runs).",
+        epilog="Without a command the window opens (or, with no display, the headless demo runs). "
+        "`vrpreview MODEL` (a file, as the desktop entry passes it) is `vrpreview --scene MODEL`.",
     )
     _common(parser, default=None)  # the window: the last scene (the showroom on a first run)
     parser.add_argument("--list-settings", action="store_true", help="print every setting key")
@@ -142,6 +143,36 @@ def _settings(args: argparse.Namespace) -> Settings:
     return settings
 
 
+# The main parser's options that take a value: what follows them is no file argument.
+_VALUE_OPTIONS = ("--scene", "--set", "--preset", "--path")
+
+
+def file_as_scene(argv: list[str], parser: argparse.ArgumentParser) -> list[str]:
+    """``vrpreview FILE`` (the desktop entry's ``Exec=vrpreview %f``) as ``--scene FILE``.
+
+    The first argument that is neither an option, an option's value nor a command, and looks
+    like a file (it exists, or has a suffix or a folder), becomes the scene; anything else is
+    left to argparse, which names the commands for a mistyped one."""
+    commands: set[str] = set()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            commands.update(action.choices)
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg in _VALUE_OPTIONS:
+            i += 2
+            continue
+        if arg.startswith("-"):
+            i += 1
+            continue
+        looks_like_file = Path(arg).suffix or os.sep in arg or os.path.exists(arg)
+        if arg in commands or not looks_like_file:
+            break
+        return [*argv[:i], "--scene", arg, *argv[i + 1 :]]
+    return list(argv)
+
+
 def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
@@ -154,7 +185,8 @@ def main(
     """Run the command in ``argv``; without one, ``open_window`` opens the window (no display
     or no ``open_window``: the headless walkthrough runs instead)."""
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(file_as_scene(sys.argv[1:] if argv is None else argv, parser))
     from app.loaders import SceneLoadError
     from app.paths import PathError
     from app.scenes import resolve_path
