@@ -54,7 +54,10 @@ def python_and_checkout() -> list[Path]:
     for pattern in ("/usr/lib/python3*", "/usr/local/lib/python3*"):
         found.update(Path(p) for p in glob.glob(pattern))
     system = {Path("/"), Path("/usr"), Path("/usr/local")}  # a Debian Python's prefix is /usr
-    return sorted(p.resolve() for p in found if p.is_dir() and p not in system)
+    folders = sorted(p.resolve() for p in found if p.is_dir() and p not in system)
+    # A folder inside another hidden one (the venv inside the checkout) is hidden with it;
+    # mounting over it after its parent went empty would fail.
+    return [p for p in folders if not any(p != q and p.is_relative_to(q) for q in folders)]
 
 
 def can_isolate() -> bool:
