@@ -416,3 +416,13 @@ def test_a_damaged_preferences_file_gives_a_first_run(make_window):
     assert [a.text() for a in window.recent_menu.actions()] == ["(no files opened yet)"]
     assert window_state.last_scene() == "showroom"
     assert window_state.last_folder() == str(Path.home())
+
+
+def test_the_app_has_the_projects_icon(qapp):
+    from ui.main_window import app_icon, create_app
+
+    app = create_app()
+    sizes = {s.width() for s in app_icon().availableSizes()}
+    assert {48, 128, 256} <= sizes
+    assert not app.windowIcon().isNull()
+    assert app.desktopFileName() == "vrpreview"

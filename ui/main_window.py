@@ -18,10 +18,11 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 from PyQt6.QtCore import QBuffer, QByteArray, QEvent, QIODevice, QObject, QRect, QSize, Qt, QTimer
-from PyQt6.QtGui import QAction, QActionGroup, QKeySequence, QSurfaceFormat
+from PyQt6.QtGui import QAction, QActionGroup, QIcon, QKeySequence, QSurfaceFormat
 from PyQt6.QtWidgets import (
     QApplication,
     QDockWidget,
@@ -711,10 +712,23 @@ def _load_with_session(
     return scene, scenes.default_path(scene)
 
 
+def app_icon() -> QIcon:
+    """The project's icon (assets/icons, drawn by packaging/make_icon.py) at every size."""
+    icon = QIcon()
+    folder = resources.files("assets") / "icons"
+    for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+        if entry.name.endswith(".png"):
+            with resources.as_file(entry) as png:
+                icon.addFile(str(png))
+    return icon
+
+
 def create_app(argv: list[str] | None = None) -> QApplication:
     QSurfaceFormat.setDefaultFormat(default_format())
     app = QApplication.instance() or QApplication(argv or sys.argv[:1])
     app.setApplicationName("VR Preview")
+    app.setDesktopFileName("vrpreview")  # the desktop entry (packaging/vrpreview.desktop)
+    app.setWindowIcon(app_icon())
     guard.install()
     return app  # type: ignore[return-value]
 
