@@ -64,11 +64,27 @@ class Mesh:
 
 
 @dataclass
-class PointLight:
+class Light:
+    """A lamp (point or spot, intensity in candela) or the sun (directional, in lux).
+
+    Light units: the renderer's linear values are luminance in cd/m2; a point or spot light's
+    ``intensity`` is candela (KHR_lights_punctual's), a directional light's is illuminance in
+    lux. ``direction`` is where a spot or directional light shines (unit, scene axes); a spot's
+    cone is full inside ``inner_cone_deg`` and dark outside ``outer_cone_deg`` (half angles).
+    """
+
     position: tuple[float, float, float]
     color: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    intensity: float = 10.0  # candela-like: radiance scale at 1 m
+    intensity: float = 10.0  # candela (point, spot) or lux (directional)
     range_m: float = 10.0  # the light contributes nothing beyond this distance
+    kind: str = "point"  # "point", "spot" or "directional"
+    direction: tuple[float, float, float] = (0.0, -1.0, 0.0)
+    inner_cone_deg: float = 0.0
+    outer_cone_deg: float = 45.0
+    casts_shadows: bool = True
+
+
+PointLight = Light  # the name the lamps had before spots and the sun
 
 
 @dataclass

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import datetime
 import json
 import math
 import os
@@ -44,6 +45,7 @@ SECTION_TITLES = {
     "cps": "Coarse pixel shading (CPS)",
     "photons": "Indirect light (photon mapping)",
     "scene": "Model files",
+    "sky": "Sun and sky",
 }
 
 #: Tooltip lines are wrapped to this many characters, so none runs off the screen.
@@ -168,6 +170,27 @@ def range_text(meta: dict[str, Any], value: Any) -> str:
 def wrap_tooltip(paragraphs: list[str], width: int = TOOLTIP_WIDTH) -> str:
     """Plain-text lines of at most ``width`` characters, one paragraph after another."""
     return "\n".join(textwrap.fill(p, width) for p in paragraphs if p)
+
+
+def _clock_time(value: Any) -> str:
+    """``HH:MM`` on a 24-hour clock."""
+    text = str(value).strip()
+    try:
+        hours, minutes = (int(part) for part in text.split(":"))
+    except ValueError:
+        raise ValueError(f"{text!r} is not a time of day such as 10:30") from None
+    if not (0 <= hours <= 23 and 0 <= minutes <= 59):
+        raise ValueError(f"{text!r} is not a time of day such as 10:30")
+    return f"{hours:02d}:{minutes:02d}"
+
+
+def _iso_date(value: Any) -> str:
+    """``YYYY-MM-DD``."""
+    text = str(value).strip()
+    try:
+        return datetime.date.fromisoformat(text).isoformat()
+    except ValueError:
+        raise ValueError(f"{text!r} is not a date such as 2026-06-21") from None
 
 
 @dataclass
@@ -800,6 +823,66 @@ class SceneSettings:
 
 
 @dataclass
+class SkySettings:
+    """Daylight: the sun's place from the date, time and site, and the sky seen and lit by."""
+
+    enabled: bool = _opt(
+        False,
+        "Lights the room with the sun and the sky through its windows.",
+        label="Daylight",
+    )
+    time: str = _opt(
+        "10:00",
+        "The local solar time of day (hours:minutes) that places the sun.",
+        label="Time of day",
+        check=_clock_time,
+    )
+    date: str = _opt(
+        "2026-06-21",
+        "The date (year-month-day) that places the sun.",
+        label="Date",
+        check=_iso_date,
+    )
+    latitude: float = _opt(
+        48.85,
+        "Where the room stands, north of the equator (negative: south).",
+        label="Latitude",
+        unit="°",
+        lo=-90.0,
+        hi=90.0,
+        decimals=2,
+        step=1.0,
+    )
+    longitude: float = _opt(
+        2.35,
+        "Where the room stands, east of Greenwich (negative: west).",
+        label="Longitude",
+        unit="°",
+        lo=-180.0,
+        hi=180.0,
+        decimals=2,
+        step=1.0,
+    )
+    north_deg: float = _opt(
+        0.0,
+        "Which way north lies in the model: the angle from the model's -Z axis, "
+        "counter-clockwise seen from above.",
+        label="North",
+        unit="°",
+        lo=-360.0,
+        hi=360.0,
+        decimals=0,
+        step=5.0,
+    )
+    image: str = _opt(
+        "",
+        "A panorama photo (equirectangular HDR or JPG) to use as the sky instead of the "
+        "computed one; empty: the computed sky.",
+        label="Sky photo",
+    )
+
+
+@dataclass
 class Settings:
     stereo: StereoSettings = field(default_factory=StereoSettings)
     render: RenderSettings = field(default_factory=RenderSettings)
@@ -809,6 +892,7 @@ class Settings:
     cps: CpsSettings = field(default_factory=CpsSettings)
     photons: PhotonSettings = field(default_factory=PhotonSettings)
     scene: SceneSettings = field(default_factory=SceneSettings)
+    sky: SkySettings = field(default_factory=SkySettings)
 
     # -- dotted-key access -------------------------------------------------------------------
     def _locate(self, key: str) -> tuple[Any, dataclasses.Field[Any]]:

@@ -180,6 +180,7 @@ def test_whole_numbers_are_shown_as_whole_numbers_and_one_control_per_setting(wi
         },
         "CPS": window.cps_panel.controls,
         "Photons": window.photon_panel.controls.editors,
+        "Sun and sky": window.sky_panel.editors,
     }
     seen: dict[str, list[str]] = {}
     for tab, editors in forms.items():

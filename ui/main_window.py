@@ -116,6 +116,9 @@ class MainWindow(QMainWindow):
             lambda: self.view.measure_quality(self._photons_shown), self.view.show_heat_map
         )
         self.add_panel(self.quality_panel, "Quality")
+        self.sky_panel = SettingsPanel(self.settings, ("sky",))
+        self.sky_panel.on_change = self._setting_changed
+        self.add_panel(self.sky_panel, "Sun and sky")
         self.add_panel(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)
         self.dock.setObjectName("evaluation-panels")
