@@ -49,6 +49,7 @@ def default_format() -> QSurfaceFormat:
 
 class StereoView(QOpenGLWidget):
     gl_failed = pyqtSignal(str)
+    heat_map_cleared = pyqtSignal()  # the view, the gaze or a setting changed under it
 
     def __init__(self, session: Session, parent=None) -> None:
         super().__init__(parent)
@@ -59,6 +60,8 @@ class StereoView(QOpenGLWidget):
         self._pending_scene: Scene | None = session.scene
         self._pending_photons: tuple | None = None  # (PhotonMap | None,) once set
         self._probe = None  # render.quality.QualityProbe, made on the first measurement
+        self._heat_key: tuple | None = None  # the view the heat map measured (None: none)
+        self.heat_map_shown = False
         self._keys: set[int] = set()
         self._last_tick = time.perf_counter()
         self._drag_from: QPointF | None = None
@@ -93,7 +96,7 @@ class StereoView(QOpenGLWidget):
             return
         if self._pending_scene is not None:
             self.renderer.set_scene(self._pending_scene, stream_in=True)
-            self.renderer.overlay.set_heat_map(None)  # measured on the scene before
+            self._clear_heat_map()  # measured on the scene before
             self._pending_scene = None
         if self._pending_photons is not None:
             self.renderer.set_photons(self._pending_photons[0])
@@ -104,6 +107,7 @@ class StereoView(QOpenGLWidget):
         fbo.viewport = (0, 0, w, h)
         fbo.clear(0.0, 0.0, 0.0, 1.0)
         frame = self.session.frame_input(w // 2, h)
+        self._drop_stale_heat_map(frame, w, h)
         now = time.perf_counter()
         if now - self._text_at > 0.25:  # redraw the statistics text at 4 Hz, not every frame
             self._text_at = now
@@ -151,13 +155,16 @@ class StereoView(QOpenGLWidget):
             fov = self.session.camera.horizontal_fov_deg(w // 2, h)
             report = self._probe.measure(self.renderer, self.session.scene, photons, frame, fov)
             self.renderer.overlay.set_heat_map(report["heat"])
+            self._heat_key = self._view_key(frame, w, h) if report["heat"] is not None else None
+            self.heat_map_shown = self._heat_key is not None
         finally:
             self.doneCurrent()
         self.update()
         return report
 
     def show_heat_map(self, rgba) -> None:
-        """Show (an (h, w, 4) image) or hide (None) the error heat map over the view."""
+        """Show (an (h, w, 4) image of the view as it is now) or hide (None) the error heat
+        map over the view; it goes away by itself once the view changes."""
         if self.renderer is None:
             return
         self.makeCurrent()
@@ -165,7 +172,42 @@ class StereoView(QOpenGLWidget):
             self.renderer.overlay.set_heat_map(rgba)
         finally:
             self.doneCurrent()
+        self.heat_map_shown = rgba is not None
+        if rgba is not None and self._heat_key is None:
+            ratio = self.devicePixelRatioF()
+            w, h = max(2, int(self.width() * ratio)), max(1, int(self.height() * ratio))
+            self._heat_key = self._view_key(self.session.frame_input(w // 2, h), w, h)
         self.update()
+
+    def _view_key(self, frame, w: int, h: int) -> tuple:
+        """Everything the measured picture depends on besides the scene: the pose, the gaze,
+        the texture levels, the size and every setting."""
+        walker = self.session.walker
+        return (
+            tuple(float(v) for v in walker.position),
+            float(walker.yaw_deg),
+            float(walker.pitch_deg),
+            tuple(frame.gaze),
+            bool(frame.gaze_fixed),
+            None if frame.levels is None else tuple(frame.levels),
+            (w, h),
+            self.session.settings.to_dict(),
+        )
+
+    def _drop_stale_heat_map(self, frame, w: int, h: int) -> None:
+        """In paintGL (context current): a heat map never outlives the view it measured (hidden
+        or shown: one measured before a move is never shown after it)."""
+        if self._heat_key is not None and self._view_key(frame, w, h) != self._heat_key:
+            self._clear_heat_map()
+
+    def _clear_heat_map(self) -> None:
+        """With the context current."""
+        if self.renderer is not None:
+            self.renderer.overlay.set_heat_map(None)
+        self.heat_map_shown = False
+        if self._heat_key is not None:
+            self._heat_key = None
+            self.heat_map_cleared.emit()
 
     def texture_resident_bytes(self) -> int:
         return self.renderer.texture_resident_bytes() if self.renderer is not None else 0
