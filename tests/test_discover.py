@@ -111,6 +111,11 @@ def test_overlay_dismissed_by_esc_click_and_got_it(window, qtbot):
     f1.trigger()
     f1.trigger()  # F1 again puts it away
     assert not overlay_shown(window)
+    f1.trigger()
+    qtbot.keyClick(window.view, Qt.Key.Key_Tab)  # normal mode shows the scene only
+    assert window.normal_mode and not overlay_shown(window)
+    qtbot.keyClick(window.view, Qt.Key.Key_Tab)
+    assert not window.normal_mode and not overlay_shown(window)
 
 
 # -- Help > Controls ---------------------------------------------------------------------------

@@ -58,6 +58,8 @@ class QtLogHandler(logging.Handler):
             if record.exc_info and record.exc_info[1] is not None:
                 message += f" ({type(record.exc_info[1]).__name__}: {record.exc_info[1]})"
             self.bridge.record.emit(record.created, record.levelno, message)
+        except RuntimeError:  # the panel is gone (its window closed without detaching)
+            logging.getLogger().removeHandler(self)
         except Exception:  # noqa: BLE001 - logging must never raise into the caller
             self.handleError(record)
 

@@ -211,6 +211,8 @@ class MainWindow(QMainWindow):
         for w in (self.dock, self.statusBar(), self.menuBar()):
             w.setVisible(not normal)
         self.view.session.settings.render.overlay = not normal
+        if normal:
+            self.keys_overlay.dismiss()  # scene only (a study's exposure, too)
         self.view.setFocus()
 
     # -- scenes --------------------------------------------------------------------------------
