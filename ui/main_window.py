@@ -310,7 +310,9 @@ class MainWindow(QMainWindow):
             dialog.repaint()  # painted now: the UI thread is busy until the first frame
         self.session.set_scene(scene, session_path)
         self.view.set_scene(scene)
-        self.view.repaint()  # upload and draw the first frame while the dialog says so
+        # Upload and draw the first frame now, under the dialog: grabFramebuffer() always renders
+        # (repaint() may be deferred by Qt until after the dialog has gone).
+        self.view.grabFramebuffer()
         self._update_title()
         self._refresh_viewpoints()
         note = f"Loaded {scene.name}: {scene.triangle_count:,} triangles"
