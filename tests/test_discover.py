@@ -359,3 +359,30 @@ def test_samples_folder_beside_the_project(tmp_path, monkeypatch):
 )
 def test_plain_names_from_file_names(stem, plain):
     assert scenes.plain_name(stem) == plain
+
+
+def test_a_slow_failing_load_closes_the_busy_dialog_before_the_error(window, qtbot, monkeypatch):
+    from PyQt6.QtWidgets import QMessageBox
+
+    from app.loaders import SceneLoadError
+
+    def failing(name, options=None, progress=None):
+        time.sleep(0.8)
+        raise SceneLoadError(f"Cannot open '{name}': the file is damaged.")
+
+    monkeypatch.setattr(ui.main_window.scenes, "resolve", failing)
+    at_error: list[tuple[int, bool]] = []
+    monkeypatch.setattr(
+        QMessageBox,
+        "critical",
+        lambda *a, **k: at_error.append(
+            (len(busy_dialogs()), QApplication.overrideCursor() is None)
+        ),
+    )
+    before = window.session.scene
+    window.load("damaged.glb")
+    dialog = window._loading.dialog
+    qtbot.waitUntil(dialog.isVisible, timeout=5000)
+    window.wait_for_load()
+    assert at_error == [(0, True)]  # the error box alone, with the normal cursor
+    assert window.session.scene is before

@@ -279,16 +279,29 @@ class MainWindow(QMainWindow):
         try:
             self._finish_load(loading)
         finally:
-            loading.dialog.reset()
-            loading.dialog.hide()
-            loading.dialog.deleteLater()
-            QApplication.restoreOverrideCursor()
+            self._end_busy(loading)
+
+    def _end_busy(self, loading: _Loading) -> None:
+        """The dialog goes and the cursor comes back, once per load."""
+        if loading.ended:
+            return
+        loading.ended = True
+        loading.dialog.reset()
+        loading.dialog.hide()
+        loading.dialog.deleteLater()
+        QApplication.restoreOverrideCursor()
 
     def _finish_load(self, loading: _Loading) -> None:
         """The worker is done: show the scene (or the error). The upload to the graphics card
         and the first frame run here on the UI thread, so the dialog stays up through them: a
         load is busy until its first frame is on screen."""
         name = loading.name
+        try:
+            failed = loading.future.exception() is not None
+        except concurrent.futures.CancelledError:
+            failed = True
+        if failed:
+            self._end_busy(loading)  # the dialog goes before any message box
         try:
             scene, session_path = loading.future.result()
         except LoadCancelled:
@@ -600,6 +613,7 @@ class _Loading:
     report: _LatestProgress
     progress: Progress
     started: float
+    ended: bool = False  # the dialog and the busy cursor are gone
 
 
 def _load_with_session(
