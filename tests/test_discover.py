@@ -212,6 +212,7 @@ def test_a_slow_load_shows_the_busy_dialog_until_its_first_frame(window, qtbot, 
     window.load("showroom")
     dialog = window._loading.dialog
     assert QApplication.overrideCursor() is not None  # busy at once
+    assert window.view.busy  # the old scene drawn at 4 frames a second: the CPU is the loader's
     qtbot.waitUntil(dialog.isVisible, timeout=5000)
     # On screen, not just flagged visible: the screen shows the dialog's own picture.
     QApplication.processEvents()
@@ -239,6 +240,7 @@ def test_a_slow_load_shows_the_busy_dialog_until_its_first_frame(window, qtbot, 
     assert seen and seen[0][0] and "Showing showroom" in seen[0][1]
     assert not busy_dialogs()
     assert QApplication.overrideCursor() is None
+    assert not window.view.busy
     assert window.session.scene.name == "showroom"
 
 

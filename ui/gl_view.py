@@ -36,6 +36,7 @@ MOVE_KEYS = {
 }
 TURN_KEYS = {Qt.Key.Key_Left: 1.0, Qt.Key.Key_Right: -1.0}
 TURN_DEG_S = 60.0
+BUSY_FRAME_MS = 250  # the view's frame interval while a scene loads
 
 
 def default_format() -> QSurfaceFormat:
@@ -178,6 +179,15 @@ class StereoView(QOpenGLWidget):
             w, h = max(2, int(self.width() * ratio)), max(1, int(self.height() * ratio))
             self._heat_key = self._view_key(self.session.frame_input(w // 2, h), w, h)
         self.update()
+
+    def set_busy(self, busy: bool) -> None:
+        """While a load runs behind its window-modal dialog the view draws 4 frames a second,
+        not as many as it can: the loader (and llvmpipe) get the CPU, the dialog stays lively."""
+        self._tick.setInterval(BUSY_FRAME_MS if busy else 0)
+
+    @property
+    def busy(self) -> bool:
+        return self._tick.interval() == BUSY_FRAME_MS
 
     def _view_key(self, frame, w: int, h: int) -> tuple:
         """Everything the measured picture depends on besides the scene: the pose, the gaze,

@@ -241,6 +241,7 @@ class MainWindow(QMainWindow):
         future = self._loader.submit(_load_with_session, name_or_path, options, progress)
         self._loading = _Loading(future, name_or_path, dialog, report, progress, time.monotonic())
         QApplication.setOverrideCursor(Qt.CursorShape.BusyCursor)  # at once, before the dialog
+        self.view.set_busy(True)
         self._load_poll.start(30)
 
     def cancel_load(self) -> None:
@@ -290,6 +291,7 @@ class MainWindow(QMainWindow):
         loading.dialog.hide()
         loading.dialog.deleteLater()
         QApplication.restoreOverrideCursor()
+        self.view.set_busy(False)
 
     def _finish_load(self, loading: _Loading) -> None:
         """The worker is done: show the scene (or the error). The upload to the graphics card
