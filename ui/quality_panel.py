@@ -56,7 +56,7 @@ class QualityPanel(QWidget):
         grid.addWidget(self.fovea_diff, len(REGIONS) + 1, 2, 1, 2)
         layout.addWidget(box)
         self.heat = QCheckBox(
-            "Show the FLIP heat map over the view (dark: no error; "
+            "Show the FLIP heat map over the view (F8; dark: no error; "
             "purple, orange, pale yellow: FLIP 0.25 and above)"
         )
         self.heat.setEnabled(False)
