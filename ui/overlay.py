@@ -9,7 +9,7 @@ preference ``help/overlay_seen``), F1 brings it back, and a click, Esc, a moveme
 from __future__ import annotations
 
 from PyQt6.QtCore import QEvent, QObject, Qt
-from PyQt6.QtGui import QColor, QKeyEvent, QMouseEvent, QPainter, QPaintEvent
+from PyQt6.QtGui import QKeyEvent, QMouseEvent
 from PyQt6.QtWidgets import QFrame, QGridLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from ui.gl_view import MOVE_KEYS, TURN_KEYS
@@ -28,7 +28,8 @@ ESSENTIAL_KEYS: tuple[tuple[str, str], ...] = (
 
 
 class KeysOverlay(QWidget):
-    """Covers its parent (the view) with a dimmed backdrop and a card of keys."""
+    """Covers its parent (the view): a dark card of keys in the middle, the scene around it
+    as it is (clicks anywhere on it dismiss it)."""
 
     def __init__(self, view: QWidget) -> None:
         super().__init__(view)
@@ -120,11 +121,6 @@ class KeysOverlay(QWidget):
     def mousePressEvent(self, event: QMouseEvent) -> None:
         self.dismiss()
         event.accept()
-
-    def paintEvent(self, event: QPaintEvent) -> None:
-        painter = QPainter(self)
-        painter.fillRect(self.rect(), QColor(0, 0, 0, 110))  # the scene stays visible through it
-        painter.end()
 
 
 def _truthy(value: object) -> bool:
