@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -120,3 +122,89 @@ def look_around(scene: Scene, seconds: float = 6.0) -> CameraPath:
         PathKey(seconds, pos, yaw, pitch, (0.5, 0.5), True),
     ]
     return CameraPath(keys, scene.name)
+
+
+# -- the Samples menu ----------------------------------------------------------------------------
+
+BUILTIN_LABELS: dict[str, str] = {
+    "showroom": "Showroom",
+    "showroom-100": "Showroom with 100 lights",
+    "showroom-gi": "Showroom with indirect light",
+    "texture-test": "Texture test",
+    "tcr-cube": "TCR test cube",
+    "corridor": "Corridor walk",
+}
+SAMPLE_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply")
+_MAX_SAMPLE_DEPTH = 4  # folders below the scenes folder searched for models
+_MAX_SAMPLES = 200  # a huge folder does not make a menu nobody can use
+
+
+@dataclass(frozen=True)
+class Sample:
+    """A model file offered in the Samples menu: its group (the first folder under the scenes
+    folder, "" for a file directly in it), a plain label and the file."""
+
+    group: str
+    label: str
+    path: Path
+
+
+def samples_folder(project_root: Path | None = None) -> Path | None:
+    """The shared scenes folder: ``VRPREVIEW_SCENES``, else ``../shared/scenes`` beside the
+    project, else beside the current folder; None when there is none."""
+    env = os.environ.get("VRPREVIEW_SCENES")
+    if env:
+        folder = Path(env).expanduser()
+        return folder if folder.is_dir() else None
+    root = project_root or Path(__file__).resolve().parents[1]
+    for base in (root, Path.cwd()):
+        folder = (base / ".." / "shared" / "scenes").resolve()
+        if folder.is_dir():
+            return folder
+    return None
+
+
+def plain_name(stem: str) -> str:
+    """A file or folder name as a designer would say it: 'living-room-2' -> 'Living room 2',
+    'CesiumMilkTruck' -> 'Cesium milk truck', 'gltf-samples' -> 'glTF samples'."""
+    words = re.sub(r"(?<=[a-z0-9])(?=[A-Z])", " ", stem.replace("_", " ").replace("-", " "))
+    parts = [w if w.isupper() and len(w) > 1 else w.lower() for w in words.split()]
+    parts = ["glTF" if p in ("gltf", "glb") else p for p in parts]
+    if not parts:
+        return stem
+    first = parts[0]
+    parts[0] = first if first == "glTF" or first.isupper() else first[:1].upper() + first[1:]
+    return " ".join(parts)
+
+
+def find_samples(folder: Path | None) -> list[Sample]:
+    """The models under ``folder`` (.glb, .gltf, .obj, .ply), one per name in each group (a
+    .glb preferred to the same model as .gltf), sorted by group and label. A missing or
+    unreadable folder gives an empty list."""
+    if folder is None or not folder.is_dir():
+        return []
+    found: dict[tuple[str, str], Path] = {}
+    try:
+        for dirpath, dirnames, filenames in os.walk(folder):
+            here = Path(dirpath)
+            rel = here.relative_to(folder)
+            if len(rel.parts) >= _MAX_SAMPLE_DEPTH:
+                dirnames.clear()
+            dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+            for name in sorted(filenames):
+                p = here / name
+                ext = p.suffix.lower()
+                if ext not in SAMPLE_EXTENSIONS:
+                    continue
+                group = plain_name(rel.parts[0]) if rel.parts else ""
+                key = (group, plain_name(p.stem))
+                old = found.get(key)
+                if old is None or (
+                    SAMPLE_EXTENSIONS.index(ext) < SAMPLE_EXTENSIONS.index(old.suffix.lower())
+                ):
+                    found[key] = p
+            if len(found) >= _MAX_SAMPLES:
+                break
+    except OSError:
+        return []
+    return [Sample(g, label, p) for (g, label), p in sorted(found.items())]

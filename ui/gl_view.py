@@ -44,6 +44,7 @@ MOVE_KEYS = {
 }
 TURN_KEYS = {Qt.Key.Key_Left: 1.0, Qt.Key.Key_Right: -1.0}
 TURN_DEG_S = 60.0
+BUSY_FRAME_MS = 250  # the view's frame interval while a scene loads
 
 
 def default_format() -> QSurfaceFormat:
@@ -57,6 +58,7 @@ def default_format() -> QSurfaceFormat:
 
 class StereoView(QOpenGLWidget):
     gl_failed = pyqtSignal(str)
+    heat_map_cleared = pyqtSignal()  # the view, the gaze or a setting changed under it
 
     def __init__(self, session: Session, parent=None) -> None:
         super().__init__(parent)
@@ -68,6 +70,8 @@ class StereoView(QOpenGLWidget):
         self._pending_scene: Scene | None = session.scene
         self._pending_photons: tuple | None = None  # (PhotonMap | None,) once set
         self._probe = None  # render.quality.QualityProbe, made on the first measurement
+        self._heat_key: tuple | None = None  # the view the heat map measured (None: none)
+        self.heat_map_shown = False
         self._keys: set[int] = set()
         self._last_tick = time.perf_counter()
         self._drag_from: QPointF | None = None
@@ -105,7 +109,7 @@ class StereoView(QOpenGLWidget):
             return
         if self._pending_scene is not None:
             self.renderer.set_scene(self._pending_scene, stream_in=True)
-            self.renderer.overlay.set_heat_map(None)  # measured on the scene before
+            self._clear_heat_map()  # measured on the scene before
             self._pending_scene = None
         if self._pending_photons is not None:
             self.renderer.set_photons(self._pending_photons[0])
@@ -115,6 +119,7 @@ class StereoView(QOpenGLWidget):
         fbo.viewport = (0, 0, layout.view_width, layout.view_height)
         fbo.clear(0.0, 0.0, 0.0, 1.0)  # the letterbox bars
         frame = self.session.frame_input(layout.eye_width, layout.eye_height)
+        self._drop_stale_heat_map(frame)
         now = time.perf_counter()
         if now - self._text_at > 0.25:  # redraw the statistics text at 4 Hz, not every frame
             self._text_at = now
@@ -181,13 +186,16 @@ class StereoView(QOpenGLWidget):
             fov = self.session.camera.horizontal_fov_deg(layout.eye_width, layout.eye_height)
             report = self._probe.measure(self.renderer, self.session.scene, photons, frame, fov)
             self.renderer.overlay.set_heat_map(report["heat"])
+            self._heat_key = self._view_key(frame) if report["heat"] is not None else None
+            self.heat_map_shown = self._heat_key is not None
         finally:
             self.doneCurrent()
         self.update()
         return report
 
     def show_heat_map(self, rgba) -> None:
-        """Show (an (h, w, 4) image) or hide (None) the error heat map over the view."""
+        """Show (an (h, w, 4) image of the view as it is now) or hide (None) the error heat
+        map over the view; it goes away by itself once the view changes."""
         if self.renderer is None:
             return
         self.makeCurrent()
@@ -195,7 +203,51 @@ class StereoView(QOpenGLWidget):
             self.renderer.overlay.set_heat_map(rgba)
         finally:
             self.doneCurrent()
+        self.heat_map_shown = rgba is not None
+        if rgba is not None and self._heat_key is None:
+            layout = self.eye_layout()
+            frame = self.session.frame_input(layout.eye_width, layout.eye_height)
+            self._heat_key = self._view_key(frame)
         self.update()
+
+    def set_busy(self, busy: bool) -> None:
+        """While a load runs behind its window-modal dialog the view draws 4 frames a second,
+        not as many as it can: the loader (and llvmpipe) get the CPU, the dialog stays lively."""
+        self._tick.setInterval(BUSY_FRAME_MS if busy else 0)
+
+    @property
+    def busy(self) -> bool:
+        return self._tick.interval() == BUSY_FRAME_MS
+
+    def _view_key(self, frame) -> tuple:
+        """Everything the measured picture depends on besides the scene: the pose, the gaze,
+        the texture levels, the size and every setting."""
+        walker = self.session.walker
+        return (
+            tuple(float(v) for v in walker.position),
+            float(walker.yaw_deg),
+            float(walker.pitch_deg),
+            tuple(frame.gaze),
+            bool(frame.gaze_fixed),
+            None if frame.levels is None else tuple(frame.levels),
+            self.eye_layout(),
+            self.session.settings.to_dict(),
+        )
+
+    def _drop_stale_heat_map(self, frame) -> None:
+        """In paintGL (context current): a heat map never outlives the view it measured (hidden
+        or shown: one measured before a move is never shown after it)."""
+        if self._heat_key is not None and self._view_key(frame) != self._heat_key:
+            self._clear_heat_map()
+
+    def _clear_heat_map(self) -> None:
+        """With the context current."""
+        if self.renderer is not None:
+            self.renderer.overlay.set_heat_map(None)
+        self.heat_map_shown = False
+        if self._heat_key is not None:
+            self._heat_key = None
+            self.heat_map_cleared.emit()
 
     def texture_resident_bytes(self) -> int:
         return self.renderer.texture_resident_bytes() if self.renderer is not None else 0

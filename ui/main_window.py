@@ -50,13 +50,17 @@ from app.settings import Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
 from render.texture_stream import prepare_textures
 from ui import guard, window_state
+from ui.controls import ControlsDialog
 from ui.cps_panel import CpsPanel
 from ui.frame_graph import frame_graph_dock
 from ui.gl_view import StereoView, default_format
+from ui.log_panel import LogPanel, WarningsLink
+from ui.overlay import KeysOverlay
 from ui.panels import EvaluationBar, SettingsPanel
 from ui.photon_panel import PhotonPanel
 from ui.presenter import Presenter
 from ui.quality_panel import QualityPanel
+from ui.samples_menu import fill_samples_menu
 from ui.survey_runner import open_session_dialog
 from ui.tcr_panel import TcrPanel
 
@@ -116,6 +120,9 @@ class MainWindow(QMainWindow):
             lambda: self.view.measure_quality(self._photons_shown), self.view.show_heat_map
         )
         self.add_panel(self.quality_panel, "Quality")
+        self.view.heat_map_cleared.connect(
+            self.quality_panel.heat_cleared, Qt.ConnectionType.QueuedConnection
+        )
         self.sky_panel = SettingsPanel(self.settings, ("sky",))
         self.sky_panel.on_change = self._setting_changed
         self.add_panel(self.sky_panel, "Sun and sky")
@@ -136,8 +143,17 @@ class MainWindow(QMainWindow):
         self.eval_bar.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.statusBar().addPermanentWidget(self.eval_bar, 1)
         self.frame_dock = frame_graph_dock(self, self.view.frame_log, self.settings)  # F3
+        self.log_panel = LogPanel(self)
+        self.log_panel.attach()
+        self.warnings_link = WarningsLink(self.log_panel.open_panel)
+        self.statusBar().addPermanentWidget(self.warnings_link)
+        self.controls_dialog: ControlsDialog | None = None
         self._build_menus()
         self._update_title()
+        if scene is not None:
+            self._note_warnings(scene)
+        self.keys_overlay = KeysOverlay(self.view)
+        self.keys_overlay.show_if_first_run()
         QApplication.instance().installEventFilter(self)
         self._scroll_panels()
         self.restored_geometry = self.restore_window()
@@ -174,16 +190,16 @@ class MainWindow(QMainWindow):
         self.recent_menu = f.addMenu("&Recent files")
         self.recent_menu.aboutToShow.connect(self._refresh_recent)
         self._refresh_recent()
-        built_in = f.addMenu("Built-in scenes")
-        for name in scenes.BUILTIN:
-            action(built_in, name, lambda _=False, n=name: self.load(n))
         f.addSeparator()
         action(f, "Save &screenshot", self.save_screenshot, "F12")
         action(f, "Measure &quality against full quality", self.measure_quality, "F9")
+        action(f, "Heat map of the error on/off", self.toggle_heat_map, "F8")
         action(f, "Save settings preset…", self.save_preset)
         action(f, "Load settings preset…", self.load_preset)
         f.addSeparator()
         action(f, "&Quit", self.close, "Ctrl+Q")
+        self.samples_menu = bar.addMenu("S&amples")
+        fill_samples_menu(self.samples_menu, self, self.load)
         v = bar.addMenu("&View")
         self.mode_action = action(v, "Normal mode (scene only)\tTab", self.toggle_mode)
         self.panels_action = self.dock.toggleViewAction()
@@ -214,6 +230,7 @@ class MainWindow(QMainWindow):
             self.view, self.settings, self._setting_changed, self.statusBar().showMessage, self.load
         )
         self.presenter.add_actions(v, self)  # F5 presenter mode, M mitigation, [ ] divider
+        action(v, "Log and warnings…", self.log_panel.open_panel, "Ctrl+L")
         self.viewpoint_menu = bar.addMenu("View&points")
         action(self.viewpoint_menu, "Save viewpoint…", self.save_viewpoint, "Ctrl+B")
         self.viewpoint_menu.addSeparator()
@@ -221,21 +238,27 @@ class MainWindow(QMainWindow):
         study = bar.addMenu("&Study")
         action(study, "Run a session…", lambda _=False: open_session_dialog(self))
         h = bar.addMenu("&Help")
-        action(h, "Controls", self.show_controls, "F1")
+        action(h, "Getting around (first-run help)", self.keys_overlay_toggle, "F1")
+        action(h, "Controls: every key…", self.show_controls)
+        action(h, "Log and warnings…", self.log_panel.open_panel)
 
-    def show_controls(self) -> None:
-        QMessageBox.information(
-            self,
-            "Controls",
-            (
-                "W/S or Up/Down: walk   A/D: step sideways   Left/Right: turn\n"
-                "Right- or middle-drag: look around\n"
-                "Cursor: gaze point (both eyes)   Hold left button: gaze fixed\n"
-                "Tab: evaluation / normal mode   P: play walkthrough   Ctrl+R: record path\n"
-                "F12: screenshot   Ctrl+B: save viewpoint   Ctrl+O: open a model\n"
-                "F9: measure the frame against full quality (Quality tab, heat map)"
-            ),
-        )
+    def keys_overlay_toggle(self) -> None:
+        self.keys_overlay.toggle()
+
+    def show_controls(self) -> ControlsDialog:
+        """Help > Controls: every key, built from the window's actions when opened."""
+        if self.controls_dialog is not None:
+            self.controls_dialog.close()
+        self.controls_dialog = ControlsDialog(self)
+        self.controls_dialog.show()
+        return self.controls_dialog
+
+    def toggle_heat_map(self) -> None:
+        """F8: the heat map on or off, measuring first when there is none for this view."""
+        if self.quality_panel.report.get("heat") is not None:
+            self.quality_panel.toggle_heat()
+        else:
+            self.measure_quality()
 
     # -- modes ---------------------------------------------------------------------------------
     def eventFilter(self, obj: QObject, event: QEvent) -> bool:
@@ -261,6 +284,8 @@ class MainWindow(QMainWindow):
             w.setVisible(not normal)
         self.dock.setVisible(not normal and self._dock_wanted)
         self.view.session.settings.render.overlay = not normal
+        if normal:
+            self.keys_overlay.dismiss()  # scene only (a study's exposure, too)
         self.view.setFocus()
 
     def _panels_toggled(self, shown: bool) -> None:
@@ -369,6 +394,8 @@ class MainWindow(QMainWindow):
         options = LoadOptions.from_settings(self.settings.scene)
         future = self._loader.submit(_load_with_session, name_or_path, options, progress)
         self._loading = _Loading(future, name_or_path, dialog, report, progress, time.monotonic())
+        QApplication.setOverrideCursor(Qt.CursorShape.BusyCursor)  # at once, before the dialog
+        self.view.set_busy(True)
         self._load_poll.start(30)
 
     def cancel_load(self) -> None:
@@ -404,10 +431,33 @@ class MainWindow(QMainWindow):
             return
         self._loading = None
         self._load_poll.stop()
+        try:
+            self._finish_load(loading)
+        finally:
+            self._end_busy(loading)
+
+    def _end_busy(self, loading: _Loading) -> None:
+        """The dialog goes and the cursor comes back, once per load."""
+        if loading.ended:
+            return
+        loading.ended = True
         loading.dialog.reset()
         loading.dialog.hide()
         loading.dialog.deleteLater()
+        QApplication.restoreOverrideCursor()
+        self.view.set_busy(False)
+
+    def _finish_load(self, loading: _Loading) -> None:
+        """The worker is done: show the scene (or the error). The upload to the graphics card
+        and the first frame run here on the UI thread, so the dialog stays up through them: a
+        load is busy until its first frame is on screen."""
         name = loading.name
+        try:
+            failed = loading.future.exception() is not None
+        except concurrent.futures.CancelledError:
+            failed = True
+        if failed:
+            self._end_busy(loading)  # the dialog goes before any message box
         try:
             scene, session_path = loading.future.result()
         except LoadCancelled:
@@ -422,18 +472,34 @@ class MainWindow(QMainWindow):
             log.exception("loading %s failed", name)
             self.show_error("Cannot open scene", f"{name}: unexpected error: {exc}")
             return
+        dialog = loading.dialog
+        if dialog.isVisible() or time.monotonic() - loading.started > _SHOW_PROGRESS_AFTER_S:
+            dialog.setLabelText(f"Showing {Path(name).name}…")
+            dialog.setValue(dialog.maximum())
+            dialog.setCancelButton(None)  # too late to cancel: the scene is ready
+            dialog.show()
+            dialog.repaint()  # painted now: the UI thread is busy until the first frame
         self.session.set_scene(scene, session_path)
         self.view.set_scene(scene)
         window_state.remember_opened(name)
         self._refresh_recent()
+        # Upload and draw the first frame now, under the dialog: grabFramebuffer() always renders
+        # (repaint() may be deferred by Qt until after the dialog has gone).
+        self.view.grabFramebuffer()
         self._update_title()
         self._refresh_viewpoints()
         note = f"Loaded {scene.name}: {scene.triangle_count:,} triangles"
         if scene.warnings:
-            note += f" ({len(scene.warnings)} warnings; see the log)"
+            note += f" ({len(scene.warnings)} warnings: View > Log and warnings, Ctrl+L)"
             for w in scene.warnings:
                 log.warning("%s: %s", scene.name, w)
+        self._note_warnings(scene)
         self.statusBar().showMessage(note, 8000)
+
+    def _note_warnings(self, scene: Scene) -> None:
+        """The scene's load warnings go to the log panel and the status bar's link."""
+        self.log_panel.set_scene_warnings(scene.name, scene.warnings)
+        self.warnings_link.set_count(len(scene.warnings))
 
     def show_error(self, title: str, text: str) -> None:
         QMessageBox.critical(self, title, text)
@@ -676,6 +742,11 @@ class MainWindow(QMainWindow):
     def closeEvent(self, event) -> None:
         self.save_window()
         QApplication.instance().removeEventFilter(self)
+        self.log_panel.detach()
+        if self._loading is not None:  # closing mid-load: stop it, give the cursor back
+            self._loading.progress.cancel.set()
+            self._loading = None
+            QApplication.restoreOverrideCursor()
         self.view.release_gl()
         self._loader.shutdown(wait=False, cancel_futures=True)
         self.photon_cache.close()
@@ -704,6 +775,7 @@ class _Loading:
     report: _LatestProgress
     progress: Progress
     started: float
+    ended: bool = False  # the dialog and the busy cursor are gone
 
 
 def _load_with_session(

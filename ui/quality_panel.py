@@ -4,6 +4,10 @@ Full quality is :func:`app.quality.full_quality` (finest textures, full-rate lig
 mask, photons gathered per eye): the same reference the benchmark and the study use. The
 figures are PSNR, SSIM and FLIP on display values for the frame, the fovea (around the gaze)
 and the periphery; the FLIP error map is shown over the view as a heat map.
+
+The heat map belongs to the view it measured: the view drops it as soon as the camera, the gaze
+or a setting changes (:meth:`heat_cleared`), and F8 (:meth:`toggle_heat`) shows or hides it from
+anywhere, measuring first when there is nothing to show.
 """
 
 from __future__ import annotations
@@ -78,7 +82,7 @@ class QualityPanel(QWidget):
         grid.addWidget(self.fovea_diff, len(REGIONS) + 1, 2, 1, 2)
         layout.addWidget(box)
         self.heat = QCheckBox(
-            "Show the FLIP heat map over the view (dark: no error; "
+            "Show the FLIP heat map over the view (F8; dark: no error; "
             "purple, orange, pale yellow: FLIP 0.25 and above)"
         )
         self.heat.setToolTip(
@@ -88,10 +92,14 @@ class QualityPanel(QWidget):
         self.heat.setEnabled(False)
         self.heat.toggled.connect(self._toggle_heat)
         layout.addWidget(self.heat)
+        self.state = QLabel("Not measured yet.")
+        self.state.setWordWrap(True)
+        layout.addWidget(self.state)
         note = QLabel(
             "Full quality: finest texture levels, full-rate lighting without a mask, "
-            "the photon map gathered for each eye. The heat map is a snapshot of "
-            "the measured frame; measure again after moving."
+            "the photon map gathered for each eye. The heat map shows the measured view "
+            "only: it goes away when you move, look elsewhere or change a setting "
+            "(F8 measures again and shows it)."
         )
         note.setWordWrap(True)
         layout.addWidget(note)
@@ -110,7 +118,31 @@ class QualityPanel(QWidget):
         self.heat.blockSignals(True)
         self.heat.setChecked(has_heat)
         self.heat.blockSignals(False)
+        self.state.setText("Measured: this view." if self.report else "Nothing to measure.")
         return self.report
+
+    def toggle_heat(self) -> dict:
+        """F8: hide the heat map if shown, show it again if the view is still the measured one,
+        else measure now (which shows it)."""
+        if self.report.get("heat") is not None and self.heat.isEnabled():
+            self.heat.setChecked(not self.heat.isChecked())
+            return self.report
+        return self.measure()
+
+    def heat_cleared(self) -> None:
+        """The view changed under the heat map (it dropped it): the map is gone for good; the
+        figures stay, marked as those of an earlier view."""
+        if self.report.get("heat") is not None:
+            self.report = {**self.report, "heat": None}
+        self.heat.blockSignals(True)
+        self.heat.setChecked(False)
+        self.heat.blockSignals(False)
+        self.heat.setEnabled(False)
+        if self.report:
+            self.state.setText(
+                "The figures are from an earlier view (you moved, looked elsewhere or changed "
+                "a setting); press F9 or F8 to measure this one."
+            )
 
     def _toggle_heat(self, on: bool) -> None:
         self._show_heat(self.report.get("heat") if on else None)

@@ -34,6 +34,7 @@ def shoot(out: str | Path, size: tuple[int, int] = (1366, 768), scene: str = "sh
     window.show()
     window.load(scene)
     window.wait_for_load()
+    window.keys_overlay.dismiss()  # the picture shows the window in use, not its first run
     window.view.setFocus()
     for _ in range(6):  # a few frames; the statistics text and the bar refresh at 4 Hz
         QApplication.processEvents()
