@@ -56,7 +56,15 @@ def action_keys(window: QWidget) -> list[tuple[str, str]]:
             continue
         shortcut = " or ".join(k.toString(QKeySequence.SequenceFormat.NativeText) for k in keys)
         rows.append((shortcut, action_text(action)))
-    return sorted(set(rows), key=lambda r: (len(r[0]) > 3, r[0]))
+    return sorted(set(rows), key=_key_order)
+
+
+def _key_order(row: tuple[str, str]) -> tuple:
+    """Function keys first in number order (F3 before F11), then single keys, then chords."""
+    key = row[0]
+    if key[:1] == "F" and key[1:].isdigit():
+        return (0, int(key[1:]), key)
+    return (1 if len(key) <= 3 else 2, 0, key)
 
 
 class ControlsDialog(QDialog):
