@@ -290,7 +290,12 @@ def test_vrpreview_file_opens_the_model_in_the_real_window(qapp, tmp_path, monke
     seen: dict[str, object] = {}
 
     def exec_once(_app) -> int:  # instead of the event loop: look at the window, close it
-        (window,) = [w for w in QApplication.topLevelWidgets() if isinstance(w, MainWindow)]
+        # The window main() opened (earlier tests may leave closed windows not yet deleted).
+        (window,) = [
+            w
+            for w in QApplication.topLevelWidgets()
+            if isinstance(w, MainWindow) and id(w) not in before
+        ]
         window.wait_for_load()
         seen["title"] = window.windowTitle()
         seen["triangles"] = window.session.scene.triangle_count
@@ -299,5 +304,6 @@ def test_vrpreview_file_opens_the_model_in_the_real_window(qapp, tmp_path, monke
         return 0
 
     monkeypatch.setattr(QApplication, "exec", exec_once)
+    before = {id(w) for w in QApplication.topLevelWidgets()}
     assert launcher.main([str(model)]) == 0
     assert seen == {"title": "VR Preview — crate", "triangles": 12}
