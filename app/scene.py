@@ -56,16 +56,6 @@ class Material:
     alpha_cutoff: float = 0.5
     double_sided: bool = False
 
-    def map_indices(self) -> list[int | None]:
-        """Every texture this material samples, base colour first."""
-        return [
-            self.texture,
-            self.normal_texture,
-            self.metallic_roughness_texture,
-            self.occlusion_texture,
-            self.emissive_texture,
-        ]
-
 
 @dataclass
 class Mesh:
