@@ -396,3 +396,42 @@ def test_gltf_reader_keeps_every_map_and_the_alpha_modes(tmp_path: Path):
     assert scene.textures[stone.emissive_texture].rgba[..., 3].min() == 255
     assert glass.alpha_mode == "BLEND" and glass.base_color[3] == pytest.approx(0.25)
     assert not stone.double_sided
+
+
+def test_obj_mtl_bump_cutout_glow_and_glass(tmp_path: Path):
+    (tmp_path / "room.obj").write_text(
+        "mtllib room.mtl\n"
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\n"
+        "usemtl stone\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n"
+        "usemtl leaf\nf 1/1/1 2/2/1 3/3/1\n"
+        "usemtl glass\nf 1/1/1 3/3/1 4/4/1\n"
+    )
+    (tmp_path / "room.mtl").write_text(
+        "newmtl stone\nKd 0.8 0.8 0.8\nmap_Kd stone.png\nmap_bump -bm 2 stone-bump.png\n"
+        "map_Ke glow.png\n"
+        "newmtl leaf\nKd 1 1 1\nmap_Kd leaf.png\nmap_d leaf-alpha.png\n"
+        "newmtl glass\nKd 0.2 0.4 0.9\nd 0.3\n"
+    )
+    Image.new("RGB", (8, 8), (120, 110, 100)).save(tmp_path / "stone.png")
+    ramp = np.tile(np.arange(8, dtype=np.uint8) * 30, (8, 1))  # rises to the right
+    Image.fromarray(ramp, "L").save(tmp_path / "stone-bump.png")
+    Image.new("RGB", (8, 8), (255, 200, 100)).save(tmp_path / "glow.png")
+    Image.new("RGB", (8, 8), (40, 200, 40)).save(tmp_path / "leaf.png")
+    holes = np.zeros((8, 8), np.uint8)
+    holes[:, :4] = 255
+    Image.fromarray(holes, "L").save(tmp_path / "leaf-alpha.png")
+    scene = load_scene(tmp_path / "room.obj")
+    mats = {m.name: m for m in scene.materials}
+    stone, leaf, glass = mats["stone"], mats["leaf"], mats["glass"]
+    assert stone.normal_texture is not None and stone.emissive_texture is not None
+    normal = scene.textures[stone.normal_texture].rgba.astype(int)
+    # Height rising along +u: the normal leans towards -u (red below 128), not up or down.
+    assert normal[4, 4, 0] < 100 and abs(normal[4, 4, 1] - 128) <= 2 and normal[4, 4, 2] > 150
+    by_material = {scene.materials[m.material].name: m for m in scene.meshes}
+    assert by_material["stone"].tangents is not None and by_material["glass"].tangents is None
+    assert leaf.alpha_mode == "MASK" and leaf.texture is not None
+    alpha = scene.textures[leaf.texture].rgba[..., 3]
+    assert alpha[:, :4].min() == 255 and alpha[:, 4:].max() == 0
+    assert glass.alpha_mode == "BLEND" and glass.base_color[3] == pytest.approx(0.3)
+    assert stone.alpha_mode == "OPAQUE"
