@@ -1,10 +1,11 @@
 """glTF materials and textures -> linear-colour :class:`Material` and shared RGBA8 textures.
 
 The factors come straight from the JSON (full float precision), with glTF's defaults: white,
-fully metallic, fully rough. The renderer has one base-colour texture and scalar metal/roughness,
-so a metallicRoughnessTexture is folded into the factors by its average, and
-KHR_materials_pbrSpecularGlossiness becomes a base colour (diffuse) and a roughness (1 -
-glossiness). A texture used by ten materials is decoded and uploaded once.
+fully metallic, fully rough. Every map the renderer shades per pixel is kept: base colour (with
+its alpha for MASK and BLEND), normal (+ scale), metallic-roughness, occlusion (+ strength) and
+emissive (times KHR_materials_emissive_strength). KHR_materials_pbrSpecularGlossiness becomes a
+base colour (diffuse) and a roughness (1 - glossiness). A texture used by ten materials (or an
+occlusion-roughness-metal image used for two roles) is decoded and uploaded once.
 """
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ from app.gltf_accessors import (
     as_list,
     is_int,
 )
-from app.images import ImageError, decode_image, fitted_size, image_size, rgba_channel_means
+from app.images import ImageError, decode_image, fitted_size, image_size
 from app.progress import Progress
-from app.scene import Material, Texture
+from app.scene import ALPHA_MODES, Material, Texture
 from app.scene_builder import float_list, float_or
 
 _GL_CLAMP_TO_EDGE = 33071
@@ -165,65 +166,81 @@ class GltfMaterials:
         metallic = float_or(pbr.get("metallicFactor"), 1.0)
         roughness = float_or(pbr.get("roughnessFactor"), 1.0)
         tex_info = pbr.get("baseColorTexture")
+        mr_info = pbr.get("metallicRoughnessTexture")
         sg = exts.get("KHR_materials_pbrSpecularGlossiness")
         if isinstance(sg, dict) and "pbrMetallicRoughness" not in doc:
             base = float_list(sg.get("diffuseFactor"), 4, 1.0)
             metallic = 0.0
             roughness = 1.0 - float_or(sg.get("glossinessFactor"), 1.0)
             tex_info = sg.get("diffuseTexture")
+            mr_info = None  # its specular-glossiness map is not metallic-roughness
         emissive = float_list(doc.get("emissiveFactor"), 3, 0.0)
         strength = exts.get("KHR_materials_emissive_strength")
         if isinstance(strength, dict):
             emissive = [e * float_or(strength.get("emissiveStrength"), 1.0) for e in emissive]
-        opaque = str(doc.get("alphaMode", "OPAQUE")).upper() == "OPAQUE"
+        alpha_mode = str(doc.get("alphaMode", "OPAQUE")).upper()
+        if alpha_mode not in ALPHA_MODES:
+            self.warnings.append(f"material '{name}': unknown alpha mode {alpha_mode!r:.20}")
+            alpha_mode = "OPAQUE"
+        opaque = alpha_mode == "OPAQUE"
         if opaque:
             base[3] = 1.0  # glTF: alpha is ignored for OPAQUE materials
-        texture = None
-        if isinstance(tex_info, dict):
-            texture = self._base_texture(name, tex_info, opaque)
-        elif tex_info is not None:
-            self.warnings.append(
-                f"material '{name}': its base colour texture reference {tex_info!r:.40} is "
-                "not a texture, using its colour only"
-            )
-        mr_info = pbr.get("metallicRoughnessTexture")
-        if isinstance(mr_info, dict):
-            # No per-pixel metal/roughness in the renderer: fold the map's average into the
-            # factors (glTF: G = roughness, B = metalness) rather than ignore it.
-            image = self._image_of(mr_info)
-            rgba = self._decode(image, name, "metallic-roughness") if image is not None else None
-            if rgba is not None:
-                means = rgba_channel_means(rgba)
-                roughness *= means[1]
-                metallic *= means[2]
+        normal_info = doc.get("normalTexture")
+        occlusion_info = doc.get("occlusionTexture")
         return Material(
             name,
             (base[0], base[1], base[2], base[3]),
-            texture,
+            self._texture(name, tex_info, "base colour", keep_alpha=not opaque),
             float(roughness),
             float(metallic),
             (emissive[0], emissive[1], emissive[2]),
+            normal_texture=self._texture(name, normal_info, "normal"),
+            normal_scale=float_or(as_dict(normal_info).get("scale"), 1.0),
+            metallic_roughness_texture=self._texture(name, mr_info, "metallic-roughness"),
+            occlusion_texture=self._texture(name, occlusion_info, "occlusion"),
+            occlusion_strength=float_or(as_dict(occlusion_info).get("strength"), 1.0),
+            emissive_texture=self._texture(name, doc.get("emissiveTexture"), "emissive"),
+            alpha_mode=alpha_mode,
+            alpha_cutoff=float_or(doc.get("alphaCutoff"), 0.5),
+            double_sided=doc.get("doubleSided") is True,
         )
 
-    def _base_texture(self, material: str, info: dict[str, Any], opaque: bool) -> int | None:
+    def _texture(self, material: str, info: Any, role: str, keep_alpha: bool = False) -> int | None:
+        """Our texture index for a texture reference (None, with a warning when it is broken).
+
+        ``keep_alpha``: the base colour of a MASK or BLEND material keeps its alpha; every
+        other use stores A = 255 (so two uses of one image share a texture)."""
+        if info is None:
+            return None
+        if not isinstance(info, dict):
+            self.warnings.append(
+                f"material '{material}': its {role} texture reference {info!r:.40} is "
+                f"not a texture, {_fallback(role)}"
+            )
+            return None
         if "KHR_texture_transform" in (info.get("extensions") or {}):
             self.warnings.append(f"material '{material}': texture transform ignored")
+        if is_int(info.get("texCoord")) and info["texCoord"] != 0:
+            self.warnings.append(
+                f"material '{material}': its {role} texture uses texture coordinates "
+                f"{info['texCoord']}; the first set stands in"
+            )
         image = self._image_of(info)
         if image is None:
             self.warnings.append(
-                f"material '{material}': its base colour texture {info.get('index')!r} does not "
-                "exist, using its colour only"
+                f"material '{material}': its {role} texture {info.get('index')!r} does not "
+                f"exist, {_fallback(role)}"
             )
             return None
         repeat = self._repeats(info)
-        key = (image, repeat, opaque)
+        key = (image, repeat, keep_alpha)
         if key in self._texture_keys:
             return self._texture_keys[key]
-        rgba = self._decode(image, material, "base colour")
+        rgba = self._decode(image, material, role)
         if rgba is None:
             self._texture_keys[key] = None
             return None
-        if opaque:
+        if not keep_alpha:
             rgba = rgba.copy()
             rgba[:, :, 3] = 255
         # Two images with the same pixels (an exporter writing a file twice) are one texture.
@@ -249,7 +266,7 @@ class GltfMaterials:
         if data is None:
             self.warnings.append(
                 f"material '{material}': {role} texture '{label}' could not be read "
-                f"({self.images.failure(image)}), using its colour only"
+                f"({self.images.failure(image)}), {_fallback(role)}"
             )
         else:
             try:
@@ -260,7 +277,7 @@ class GltfMaterials:
             except ImageError as exc:
                 self.warnings.append(
                     f"material '{material}': {role} texture '{Path(label).name}' dropped "
-                    f"({exc}), using its colour only"
+                    f"({exc}), {_fallback(role)}"
                 )
         self._decoded[image] = rgba
         self.tick(f"Texture {Path(label).name}")
@@ -294,13 +311,24 @@ class GltfMaterials:
         return _GL_CLAMP_TO_EDGE not in (sampler.get("wrapS"), sampler.get("wrapT"))
 
 
+def _fallback(role: str) -> str:
+    """What a material does without its texture, for the warning."""
+    return "using its colour only" if role == "base colour" else f"shaded without its {role} map"
+
+
 def _texture_infos(spec: dict[str, Any] | None) -> list[dict[str, Any]]:
     if spec is None:
         return []
     pbr = as_dict(spec.get("pbrMetallicRoughness"))
     exts = as_dict(spec.get("extensions"))
     sg = exts.get("KHR_materials_pbrSpecularGlossiness")
-    candidates = [pbr.get("baseColorTexture"), pbr.get("metallicRoughnessTexture")]
+    candidates = [
+        pbr.get("baseColorTexture"),
+        pbr.get("metallicRoughnessTexture"),
+        spec.get("normalTexture"),
+        spec.get("occlusionTexture"),
+        spec.get("emissiveTexture"),
+    ]
     if isinstance(sg, dict):
         candidates.append(sg.get("diffuseTexture"))
     return [c for c in candidates if isinstance(c, dict)]

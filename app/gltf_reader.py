@@ -36,6 +36,7 @@ from app.gltf_accessors import (
 from app.gltf_materials import GltfImages, GltfMaterials
 from app.progress import Progress
 from app.scene import Mesh, Scene, vertex_normals
+from app.tangents import generate_tangents, transform_tangents
 
 _TRIANGLES, _STRIP, _FAN = 4, 5, 6
 _LINE_MODES = {0: "point", 1: "line", 2: "line", 3: "line"}
@@ -221,6 +222,7 @@ class _Reader:
                 if self._draco_required or attrs.get("POSITION") is None:
                     raise
                 self.warnings.append(f"mesh '{name}': {exc}; its uncompressed copy is shown")
+        tangents = None
         if decoded is not None:
             pos, normals, uvs, colors, flat = decoded
         else:
@@ -233,7 +235,19 @@ class _Reader:
         tris = self._valid_triangles(name, tris, len(pos))
         has_colors = colors is not None
         material = self.materials.index(prim.get("material"), has_colors)
-        return _world_mesh(name, pos, normals, uvs, colors, tris, material, matrix)
+        mesh = _world_mesh(name, pos, normals, uvs, colors, tris, material, matrix)
+        if self.materials.materials[material].normal_texture is not None:
+            # Only a normal-mapped material needs a tangent frame: the file's when it has one
+            # that fits (and normals to go with it), else one made from the UVs.
+            if decoded is None and normals is not None:
+                tangents = self._optional(name, attrs, "TANGENT", ("VEC4",), len(pos))
+            if tangents is not None:
+                mesh.tangents = transform_tangents(tangents, matrix[:3, :3])
+            else:
+                mesh.tangents = generate_tangents(
+                    mesh.positions, mesh.normals, mesh.uvs, mesh.indices
+                )
+        return mesh
 
     def _positions(self, attrs: dict[str, Any]) -> np.ndarray:
         index = attrs.get("POSITION")

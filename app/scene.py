@@ -31,14 +31,30 @@ class Texture:
         return int(self.rgba.shape[1]), int(self.rgba.shape[0])
 
 
+ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
+
+
 @dataclass
 class Material:
+    """glTF 2.0 metallic-roughness, per pixel. Texture fields index Scene.textures (None: the
+    factor alone). The base colour and emissive maps are sRGB colour; the normal,
+    metallic-roughness (G roughness, B metalness) and occlusion (R) maps are linear data."""
+
     name: str
     base_color: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)  # linear RGBA
-    texture: int | None = None  # index into Scene.textures
+    texture: int | None = None  # base colour (RGB) and alpha (A)
     roughness: float = 0.6
     metallic: float = 0.0
-    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)  # linear, emissive strength included
+    normal_texture: int | None = None  # tangent-space normal map (needs Mesh.tangents)
+    normal_scale: float = 1.0
+    metallic_roughness_texture: int | None = None  # multiplies roughness (G) and metallic (B)
+    occlusion_texture: int | None = None  # ambient occlusion (R)
+    occlusion_strength: float = 1.0
+    emissive_texture: int | None = None  # multiplies emissive
+    alpha_mode: str = "OPAQUE"  # "OPAQUE", "MASK" (cut out below alpha_cutoff) or "BLEND"
+    alpha_cutoff: float = 0.5
+    double_sided: bool = False
 
 
 @dataclass
@@ -54,6 +70,9 @@ class Mesh:
     indices: np.ndarray  # (M, 3) uint32
     material: int = 0
     colors: np.ndarray | None = None  # (N, 3) float32 linear vertex colours, or None
+    # (N, 4) float32 unit tangent (xyz) and handedness (w = +-1, bitangent = w * cross(N, T),
+    # pointing along +v of ``uvs``); only for meshes whose material has a normal map.
+    tangents: np.ndarray | None = None
 
     @property
     def triangle_count(self) -> int:
@@ -266,8 +285,22 @@ def _sanitize_mesh(m: Mesh, n_materials: int, drops: _Drops) -> Mesh | None:
             else None
         )
     material = m.material if 0 <= m.material < max(n_materials, 1) else 0
+    tangents = m.tangents
+    if tangents is not None:
+        tangents = np.asarray(tangents, np.float32).reshape(-1, 4)
+        if tangents.shape[0] != n:
+            tangents = None
+        else:
+            tangents = np.where(np.isfinite(tangents), tangents, 0.0).astype(np.float32)
     return Mesh(
-        m.name, pos, normals.astype(np.float32), uvs, idx.astype(np.uint32), material, colors
+        m.name,
+        pos,
+        normals.astype(np.float32),
+        uvs,
+        idx.astype(np.uint32),
+        material,
+        colors,
+        tangents,
     )
 
 
@@ -300,18 +333,31 @@ def _sanitize_material(mat: Material, n_textures: int, notes: list[str]) -> Mate
     def clean(values: tuple[float, ...], fallback: float) -> tuple[float, ...]:
         return tuple(float(np.clip(_finite(v, fallback), 0.0, 1e4)) for v in values)
 
-    tex = mat.texture if mat.texture is not None and 0 <= mat.texture < n_textures else None
+    def existing(index: int | None) -> int | None:
+        return index if index is not None and 0 <= index < n_textures else None
+
+    tex = existing(mat.texture)
     if mat.texture is not None and tex is None:
         notes.append(f"material '{mat.name}': texture {mat.texture} missing, colour only")
     base = clean(mat.base_color, 1.0)
     emissive = clean(mat.emissive, 0.0)
-    return Material(
-        mat.name,
-        (min(base[0], 1.0), min(base[1], 1.0), min(base[2], 1.0), min(base[3], 1.0)),
-        tex,
-        float(np.clip(_finite(mat.roughness, 0.6), 0.02, 1.0)),
-        float(np.clip(_finite(mat.metallic, 0.0), 0.0, 1.0)),
-        (emissive[0], emissive[1], emissive[2]),
+    mode = str(mat.alpha_mode).upper()
+    return replace(
+        mat,
+        base_color=(min(base[0], 1.0), min(base[1], 1.0), min(base[2], 1.0), min(base[3], 1.0)),
+        texture=tex,
+        roughness=float(np.clip(_finite(mat.roughness, 0.6), 0.02, 1.0)),
+        metallic=float(np.clip(_finite(mat.metallic, 0.0), 0.0, 1.0)),
+        emissive=(emissive[0], emissive[1], emissive[2]),
+        normal_texture=existing(mat.normal_texture),
+        normal_scale=float(np.clip(_finite(mat.normal_scale, 1.0), -10.0, 10.0)),
+        metallic_roughness_texture=existing(mat.metallic_roughness_texture),
+        occlusion_texture=existing(mat.occlusion_texture),
+        occlusion_strength=float(np.clip(_finite(mat.occlusion_strength, 1.0), 0.0, 1.0)),
+        emissive_texture=existing(mat.emissive_texture),
+        alpha_mode=mode if mode in ALPHA_MODES else "OPAQUE",
+        alpha_cutoff=float(np.clip(_finite(mat.alpha_cutoff, 0.5), 0.0, 1.0)),
+        double_sided=bool(mat.double_sided),
     )
 
 

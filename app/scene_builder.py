@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -19,6 +20,7 @@ import numpy as np
 from app.color import srgb_to_linear
 from app.images import fitted_size, image_to_rgba
 from app.scene import Material, Mesh, Texture, vertex_normals
+from app.tangents import generate_tangents
 
 if TYPE_CHECKING:
     from PIL.Image import Image as PILImage
@@ -62,6 +64,8 @@ class SceneBuilder:
         self._gltf_materials = self._index_gltf_materials()
         self._skipped_kinds: set[str] = set()
         self._name_uses: dict[str, int] = {}
+        self._mtl_maps: dict[str, dict[str, MtlMap]] | None = None  # read on first use
+        self._mtl_images: dict[Path, PILImage | None] = {}  # MTL map files, decoded once
 
     # ---- geometry ------------------------------------------------------------------------
 
@@ -124,6 +128,9 @@ class SceneBuilder:
             normals = vertex_normals(pos, idx)
         if uvs is None:
             uvs = np.zeros((len(pos), 2))
+        tangents = None
+        if self.materials[material].normal_texture is not None:
+            tangents = generate_tangents(pos, normals, uvs, idx)
         return Mesh(
             name,
             pos,  # float64 until app.placement.place has scaled and re-centred it
@@ -132,6 +139,7 @@ class SceneBuilder:
             idx.astype(np.uint32),
             material,
             None if colors is None else colors.astype(np.float32),
+            tangents,
         )
 
     def _vertex_colors(self, visual: Any, n: int) -> np.ndarray | None:
@@ -255,8 +263,10 @@ class SceneBuilder:
     def _simple_material(self, mat: Any) -> Material:
         """OBJ/MTL colours are sRGB; Blinn-Phong ``Ns`` becomes a roughness.
 
-        Bump and normal maps (``bump``/``map_bump``) are ignored on purpose: the renderer has no
-        normal mapping, and trimesh does not load them anyway.
+        trimesh reads only ``map_Kd``; the other maps come from the MTL itself (:meth:`_mtl`):
+        ``norm`` (a tangent-space normal map) or ``map_Bump``/``bump`` (a height map, turned
+        into a normal map), ``map_d`` (cut-out alpha, MASK), ``map_Ke`` (emissive). ``d`` or
+        ``Tr`` below 1 makes the material BLEND.
         """
         name = str(mat.name or f"material {len(self.materials)}")
         kw: dict[str, Any] = getattr(mat, "kwargs", {}) or {}
@@ -281,20 +291,76 @@ class SceneBuilder:
         ns = float_or(kw.get("ns", getattr(mat, "glossiness", None)), 10.0)
         roughness = math.sqrt(2.0 / (max(ns, 0.0) + 2.0))
         emissive = srgb_to_linear(np.asarray(float_list(kw.get("ke"), 3, 0.0))).tolist()
+        maps = self._mtl().get(name, {})
         texture = None
         image = getattr(mat, "image", None)
+        cutout = self._map_image(maps.get("map_d"), name, "alpha")
+        if image is not None and cutout is not None:
+            image = _with_alpha(image, cutout)
+        elif cutout is not None:
+            image = _with_alpha(None, cutout)
         if image is not None:
             texture = self._texture_index(image, name, None, True, False)
         else:
             self._obj_untextured[name] = mat
+        normal_texture = None
+        normal_scale = 1.0
+        if "norm" in maps:
+            normal = self._map_image(maps["norm"], name, "normal")
+            if normal is not None:
+                normal_texture = self._texture_index(normal, name, maps["norm"].file, True, True)
+        else:
+            bump = maps.get("map_bump") or maps.get("bump")
+            height = self._map_image(bump, name, "bump")
+            if bump is not None and height is not None:
+                normal = _height_to_normal(height, bump.multiplier)
+                normal_texture = self._texture_index(normal, name, bump.file, True, True)
+        emissive_texture = None
+        glow = self._map_image(maps.get("map_ke"), name, "emissive")
+        if glow is not None:
+            emissive_texture = self._texture_index(glow, name, maps["map_ke"].file, True, True)
+            if max(emissive) <= 0.0:
+                emissive = [1.0, 1.0, 1.0]  # a map without Ke: the map is the glow
+        alpha = float(np.clip(alpha, 0.0, 1.0))
+        mode = "MASK" if cutout is not None else "BLEND" if alpha < 0.999 else "OPAQUE"
         return Material(
             name,
-            (rgb[0], rgb[1], rgb[2], float(np.clip(alpha, 0.0, 1.0))),
+            (rgb[0], rgb[1], rgb[2], alpha if mode == "BLEND" else 1.0),
             texture,
             roughness,
             0.0,
             (emissive[0], emissive[1], emissive[2]),
+            normal_texture=normal_texture,
+            normal_scale=normal_scale,
+            emissive_texture=emissive_texture,
+            alpha_mode=mode,
         )
+
+    def _mtl(self) -> dict[str, dict[str, MtlMap]]:
+        if self._mtl_maps is None:
+            self._mtl_maps = _obj_maps(self.path)
+        return self._mtl_maps
+
+    def _map_image(self, spec: MtlMap | None, material: str, role: str) -> PILImage | None:
+        """An MTL map's image (decoded once per file), or None with a warning."""
+        if spec is None:
+            return None
+        from PIL import Image
+
+        if spec.path in self._mtl_images:
+            return self._mtl_images[spec.path]
+        try:
+            with Image.open(spec.path) as opened:
+                image = self._fit(opened.copy(), material, spec.file)
+        except Exception as exc:  # noqa: BLE001 - PIL raises anything for a broken file
+            self.warnings.append(
+                f"material '{material}': {role} map '{spec.file}' could not be read ({exc}), "
+                f"shaded without it"
+            )
+            self._mtl_images[spec.path] = None
+            return None
+        self._mtl_images[spec.path] = image
+        return image
 
     # ---- textures ------------------------------------------------------------------------
 
@@ -420,13 +486,26 @@ def _authored_normals(geom: Any) -> np.ndarray | None:
     return normals
 
 
-def _obj_diffuse_maps(obj_path: Path) -> dict[str, str]:
-    """``map_Kd`` file per material name from the MTL files an OBJ names."""
+@dataclass
+class MtlMap:
+    """One texture map statement of an MTL material."""
+
+    file: str  # as written
+    path: Path  # resolved next to the MTL
+    multiplier: float = 1.0  # ``-bm`` (bump maps)
+
+
+_MTL_MAPS = ("map_kd", "map_bump", "bump", "norm", "map_d", "map_ke")
+
+
+def _obj_maps(obj_path: Path) -> dict[str, dict[str, MtlMap]]:
+    """The texture maps (lower-case statement -> map) per material name from the MTL files an
+    OBJ names."""
     try:
         text = obj_path.read_bytes()
     except OSError:
         return {}
-    result: dict[str, str] = {}
+    result: dict[str, dict[str, MtlMap]] = {}
     for match in re.finditer(rb"^[ \t]*mtllib[ \t]+(.+?)[ \t]*\r?$", text, re.MULTILINE):
         mtl = obj_path.parent / match.group(1).decode("utf-8", "replace")
         try:
@@ -438,9 +517,53 @@ def _obj_diffuse_maps(obj_path: Path) -> dict[str, str]:
             parts = line.split()
             if len(parts) >= 2 and parts[0].lower() == "newmtl":
                 current = " ".join(parts[1:])
-            elif len(parts) >= 2 and parts[0].lower() == "map_kd" and current is not None:
-                result[current] = parts[-1]
+            elif len(parts) >= 2 and parts[0].lower() in _MTL_MAPS and current is not None:
+                multiplier = 1.0
+                if "-bm" in parts[1:-1]:
+                    multiplier = float_or(parts[parts.index("-bm") + 1], 1.0)
+                file = parts[-1].replace("\\", "/")
+                result.setdefault(current, {})[parts[0].lower()] = MtlMap(
+                    file, mtl.parent / file, multiplier
+                )
     return result
+
+
+def _obj_diffuse_maps(obj_path: Path) -> dict[str, str]:
+    """``map_Kd`` file per material name from the MTL files an OBJ names."""
+    return {
+        name: maps["map_kd"].file for name, maps in _obj_maps(obj_path).items() if "map_kd" in maps
+    }
+
+
+# Slope of a bump map: a height step of 1/BUMP_SLOPE (in 0..1) between neighbouring texels
+# tilts the normal by 45 degrees (times the map's -bm multiplier).
+BUMP_SLOPE = 4.0
+
+
+def _height_to_normal(height: PILImage, multiplier: float) -> PILImage:
+    """A bump (height) map, bright = raised, as a tangent-space normal map (+Y up the image)."""
+    from PIL import Image
+
+    h = np.asarray(height.convert("L"), np.float64) / 255.0
+    # Central differences with repeat wrapping (bump maps tile); rows run down the image.
+    du = (np.roll(h, -1, axis=1) - np.roll(h, 1, axis=1)) * 0.5
+    dv = (np.roll(h, 1, axis=0) - np.roll(h, -1, axis=0)) * 0.5  # +v is up the image
+    k = BUMP_SLOPE * multiplier
+    n = np.stack([-du * k, -dv * k, np.ones_like(h)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    rgb = np.clip((n * 0.5 + 0.5) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    return Image.fromarray(rgb, "RGB")
+
+
+def _with_alpha(image: PILImage | None, alpha: PILImage) -> PILImage:
+    """``image`` (white when None) with ``alpha``'s luminance as its alpha channel."""
+    from PIL import Image
+
+    base = image.convert("RGB") if image is not None else Image.new("RGB", alpha.size, "white")
+    mask = alpha.convert("L").resize(base.size)
+    out = base.copy()
+    out.putalpha(mask)
+    return out
 
 
 def _image_to_rgba(image: PILImage) -> np.ndarray:

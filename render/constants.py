@@ -90,6 +90,10 @@ TEXTURE_UNITS = {
             "eye_color",
             "text",
             "heat",
+            "normal_map",  # material maps (render.gpu_scene.MAPS)
+            "mr_map",
+            "occlusion_map",
+            "emissive_map",
         )
     )
 }

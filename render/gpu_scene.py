@@ -1,7 +1,15 @@
 """The scene on the GPU: one vertex/index buffer pair per mesh, texture pyramids, lights.
 
-Geometry is uploaded once per scene; textures stream their pyramid levels (TextureStreamer).
-``release()`` frees everything it made.
+Geometry is uploaded once per scene; base colour textures stream their pyramid levels
+(TextureStreamer); the per-pixel material maps (normal, metallic-roughness, occlusion: linear
+data; emissive: sRGB) are uploaded once with hardware mipmaps. A mesh carries a tangent
+attribute only when its material has a normal map. ``release()`` frees everything it made.
+
+The material of one mesh reaches a shader through two calls, for every pass that draws meshes
+(G-buffer, forward, blend, ids, and the shadow maps' depth passes): ``material_defines(mesh)``
+picks the program variant (``alpha_mask_defines`` for depth-only passes, with
+``shaders/alpha_mask.glsl``) and ``GpuScene.bind_material(prog, index)`` sets its uniforms and
+textures (units from ``render.constants.TEXTURE_UNITS``).
 """
 
 from __future__ import annotations
@@ -12,13 +20,25 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from app.scene import Material, Scene
+from app.scene import Material, Scene, Texture
+from app.tangents import generate_tangents
 from render.constants import MAX_LIGHTS
 from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
 VERTEX_FORMAT = "3f 3f 2f 3f"
 VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_color")
+TANGENT_FORMAT = VERTEX_FORMAT + " 4f"  # meshes with a normal map
+TANGENT_ATTRS = (*VERTEX_ATTRS, "in_tangent")
+GL_SRGB8_ALPHA8 = 0x8C43
+
+# Material map -> the sampler's name (TEXTURE_UNITS, ``u_<name>``) and whether it is colour.
+MAPS = {
+    "normal_texture": ("normal_map", False),
+    "metallic_roughness_texture": ("mr_map", False),
+    "occlusion_texture": ("occlusion_map", False),
+    "emissive_texture": ("emissive_map", True),
+}
 
 
 @dataclass
@@ -29,6 +49,37 @@ class GpuMesh:
     material: Material
     texture: int | None  # index into GpuScene.streamer
     vertex_count: int
+    tangents: bool = False  # the vertex buffer has a tangent (TANGENT_FORMAT)
+    centre: tuple[float, float, float] = (0.0, 0.0, 0.0)  # bounding-box centre (blend order)
+    maps: dict[str, moderngl.Texture] | None = None  # sampler name -> material map
+
+    @property
+    def blended(self) -> bool:
+        return self.material.alpha_mode == "BLEND"
+
+
+def material_defines(mesh: GpuMesh) -> dict[str, object]:
+    """The material.glsl variant for one mesh: which maps it samples, its alpha mode."""
+    maps = mesh.maps or {}
+    mode = mesh.material.alpha_mode
+    extra = {
+        "HAS_TANGENTS": mesh.tangents and "normal_map" in maps,
+        "HAS_MR_MAP": "mr_map" in maps,
+        "HAS_OCCLUSION_MAP": "occlusion_map" in maps,
+        "HAS_EMISSIVE_MAP": "emissive_map" in maps,
+        "ALPHA_MASK": mode == "MASK",
+        "ALPHA_BLEND": mode == "BLEND",
+    }
+    # Only the features it has: a plain material is the variant the renderer warms up.
+    return {"HAS_TEXTURE": mesh.texture is not None, **{k: True for k, v in extra.items() if v}}
+
+
+def alpha_mask_defines(mesh: GpuMesh) -> dict[str, object]:
+    """The variant for a depth-only pass (ids, shadow maps) with ``alpha_mask.glsl``: only a
+    MASK material needs its base colour texture there."""
+    if mesh.material.alpha_mode != "MASK":
+        return {}
+    return {"ALPHA_MASK": True, "HAS_TEXTURE": mesh.texture is not None}
 
 
 class GpuScene:
@@ -41,14 +92,31 @@ class GpuScene:
     ) -> None:
         self.ctx = ctx
         self.scene = scene
-        self.streamer = TextureStreamer(
-            ctx, scene.textures, anisotropy=anisotropy, stream_in=stream_in
-        )
+        # Textures no material uses as its base colour are not streamed (a 1x1 stands in,
+        # keeping the indices): they are material maps, uploaded below.
+        colour = {mat.texture for mat in scene.materials}
+        streamed = [
+            t if i in colour else Texture(t.name, _PLACEHOLDER, t.repeat)
+            for i, t in enumerate(scene.textures)
+        ]
+        self.streamer = TextureStreamer(ctx, streamed, anisotropy=anisotropy, stream_in=stream_in)
+        self.anisotropy = anisotropy
+        self._maps: dict[tuple[int, bool], moderngl.Texture] = {}
         self.meshes: list[GpuMesh] = []
         for m in scene.meshes:
             colors = m.colors if m.colors is not None else np.ones_like(m.positions)
-            data = np.hstack([m.positions, m.normals, m.uvs, colors]).astype(np.float32)
             mat = scene.materials[m.material]
+            maps = self._material_maps(mat)
+            columns = [m.positions, m.normals, m.uvs, colors]
+            tangents = "normal_map" in maps
+            if tangents:
+                t = m.tangents
+                if t is None or len(t) != len(m.positions):
+                    t = generate_tangents(m.positions, m.normals, m.uvs, m.indices)
+                columns.append(t)
+            data = np.hstack(columns).astype(np.float32)
+            lo, hi = m.bounds() if len(m.positions) else (np.zeros(3), np.zeros(3))
+            centre = (lo + hi) * 0.5
             self.meshes.append(
                 GpuMesh(
                     m.name,
@@ -57,6 +125,9 @@ class GpuScene:
                     mat,
                     mat.texture,
                     int(m.indices.size),
+                    tangents,
+                    (float(centre[0]), float(centre[1]), float(centre[2])),
+                    maps,
                 )
             )
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
@@ -74,14 +145,69 @@ class GpuScene:
         block[1, : len(self.lights)] = self.lights[:, 4:]
         self.light_buffer = ctx.buffer(block.tobytes())
 
+    def _material_maps(self, mat: Material) -> dict[str, moderngl.Texture]:
+        out = {}
+        for field, (sampler, srgb) in MAPS.items():
+            index = getattr(mat, field)
+            if index is not None and 0 <= index < len(self.scene.textures):
+                out[sampler] = self._map(index, srgb)
+        return out
+
+    def _map(self, index: int, srgb: bool) -> moderngl.Texture:
+        """Texture ``index`` as a material map, uploaded once per colour space."""
+        key = (index, srgb)
+        if key not in self._maps:
+            src = self.scene.textures[index]
+            h, w = src.rgba.shape[:2]
+            rows = np.ascontiguousarray(np.flipud(src.rgba))  # GL rows: bottom first
+            tex = self.ctx.texture(
+                (w, h), 4, rows.tobytes(), internal_format=GL_SRGB8_ALPHA8 if srgb else None
+            )
+            tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+            tex.repeat_x = tex.repeat_y = src.repeat
+            tex.anisotropy = self.anisotropy
+            self._maps[key] = tex
+        return self._maps[key]
+
+    def bind_material(
+        self, prog: moderngl.Program, index: int, names: tuple[str, ...] | None = None
+    ) -> None:
+        """Mesh ``index``'s material into ``prog``: factors (where the variant has them) and
+        textures on their units. ``names``: only these samplers (default: all it has)."""
+        from render.pass_graph import bind_texture, set_uniforms  # it imports this module
+
+        mesh = self.meshes[index]
+        mat = mesh.material
+        set_uniforms(
+            prog,
+            {},
+            optional={
+                "u_base_color": tuple(mat.base_color),
+                "u_roughness": mat.roughness,
+                "u_metallic": mat.metallic,
+                "u_emissive": tuple(mat.emissive),
+                "u_normal_scale": mat.normal_scale,
+                "u_occlusion_strength": mat.occlusion_strength,
+                "u_alpha_cutoff": mat.alpha_cutoff,
+            },
+        )
+        if mesh.texture is not None and (names is None or "albedo" in names):
+            bind_texture(prog, "albedo", self.streamer.resident[mesh.texture].tex, optional=True)
+        for sampler, tex in (mesh.maps or {}).items():
+            if names is None or sampler in names:
+                bind_texture(prog, sampler, tex, optional=True)
+
     def vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
         key = (program.glo, index)
         if key not in self._vaos:
             mesh = self.meshes[index]
-            attrs = [a for a in VERTEX_ATTRS if a in program]
+            layout = (
+                (TANGENT_FORMAT, TANGENT_ATTRS) if mesh.tangents else (VERTEX_FORMAT, VERTEX_ATTRS)
+            )
+            attrs = [a for a in layout[1] if a in program]
             fmt = " ".join(
-                f if a in attrs else f[0] + "x4"
-                for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS)
+                f if a in attrs else f[0] + "x4" for f, a in zip(layout[0].split(), layout[1])
             )
             self._vaos[key] = self.ctx.vertex_array(
                 program, [(mesh.vbo, fmt, *attrs)], index_buffer=mesh.ibo, index_element_size=4
@@ -95,19 +221,26 @@ class GpuScene:
             m.vbo.release()
             m.ibo.release()
         self.streamer.release()
+        for tex in self._maps.values():
+            tex.release()
+        self._maps.clear()
         self.light_buffer.release()
         self._vaos.clear()
         self.meshes.clear()
 
     @property
     def texture_bytes(self) -> int:
-        return self.streamer.resident_bytes()
+        maps = sum(t.width * t.height * 4 * 4 // 3 for t in self._maps.values())
+        return self.streamer.resident_bytes() + maps
 
     def texture_levels(self) -> list[int]:
         """Pyramid depth n of each mesh's texture (0 for untextured meshes)."""
         return [
             self.streamer.n_levels(m.texture) if m.texture is not None else 0 for m in self.meshes
         ]
+
+
+_PLACEHOLDER = np.full((1, 1, 4), 255, np.uint8)
 
 
 def light_buffer_data(scene: Scene) -> np.ndarray:

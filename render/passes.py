@@ -20,6 +20,7 @@ from render.constants import (
     MAX_PER_TILE,
     TEXTURE_UNITS,
 )
+from render.gpu_scene import alpha_mask_defines, material_defines
 from render.pass_graph import (
     FrameContext,
     RenderPass,
@@ -105,41 +106,40 @@ def scene_uniforms(prog: moderngl.Program | moderngl.ComputeShader, frame: Frame
 
 
 def _draw_meshes(
-    ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameContext, eye: EyeView, fragment: str
+    ctx: moderngl.Context,
+    shaders: ShaderLibrary,
+    frame: FrameContext,
+    eye: EyeView,
+    fragment: str,
+    order: list[int] | None = None,
 ) -> None:
-    """Draw every mesh for one eye with its material (texture and TCR mode as variants)."""
-    streamer = frame.scene.streamer
+    """Draw meshes for one eye with their materials (maps, alpha mode and TCR mode as
+    variants): ``order``, or every mesh that is not blended (the blend pass draws those)."""
+    scene = frame.scene
+    streamer = scene.streamer
     tcr = frame.levels is not None
-    for index, mesh in enumerate(frame.scene.meshes):
-        defines: dict[str, object] = {"HAS_TEXTURE": mesh.texture is not None}
+    if order is None:
+        order = [i for i, m in enumerate(scene.meshes) if not m.blended]
+    for index in order:
+        mesh = scene.meshes[index]
+        defines = material_defines(mesh)
         if tcr:
             defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
             defines["TCR_TINT"] = frame.tint
         prog = shaders.program("geometry.vert.glsl", fragment, defines)
-        mat = mesh.material
-        set_uniforms(
-            prog,
-            {"u_view_projection": eye.view_projection, "u_base_color": tuple(mat.base_color)},
-            # Per fragment shader: the G-buffer stores roughness / metallic, the forward path
-            # shades with them and the eye; neither reads u_emissive (emissive.frag does).
-            optional={
-                "u_roughness": mat.roughness,
-                "u_metallic": mat.metallic,
-                "u_emissive": tuple(mat.emissive),
-            },
-        )
-        if "u_eye" in prog:  # the forward path: it lights the fragments itself
+        uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
+        scene.bind_material(prog, index)
+        if "u_eye" in prog:  # the forward and blend paths: they light the fragments themselves
             uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
         level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
             resident = streamer.resident[mesh.texture]
-            bind_texture(prog, "albedo", resident.tex)
             # Only the TCR variants sample a chosen pyramid level.
             set_uniforms(prog, {}, optional={"u_level": float(level - resident.base)})
         # Only the TCR_TINT variant paints the level.
         set_uniforms(prog, {}, optional={"u_tint": level_tint(level)})
-        frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
+        scene.vao(prog, index).render(moderngl.TRIANGLES)
 
 
 class GBufferPass(RenderPass):
@@ -347,7 +347,11 @@ class EmissivePass(RenderPass):
         return deferred(settings)
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
-        emitters = [i for i, m in enumerate(frame.scene.meshes) if any(m.material.emissive)]
+        emitters = [
+            i
+            for i, m in enumerate(frame.scene.meshes)
+            if any(m.material.emissive) and not m.blended  # the blend pass adds their glow
+        ]
         if not emitters:
             return
         ctx = self.ctx
@@ -355,16 +359,24 @@ class EmissivePass(RenderPass):
         ctx.enable(moderngl.DEPTH_TEST | moderngl.BLEND)
         ctx.depth_func = "<="
         ctx.blend_func = moderngl.ONE, moderngl.ONE
-        prog = self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
+        scene = frame.scene
         for eye, tgt in zip(frame.eyes, res.targets):
             tgt.forward.use()
             tgt.forward.depth_mask = False
-            uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
             for index in emitters:
-                uniform(prog, "u_emissive").value = tuple(
-                    frame.scene.meshes[index].material.emissive
+                mesh = scene.meshes[index]
+                defines = {
+                    **alpha_mask_defines(mesh),
+                    "HAS_EMISSIVE_MAP": "emissive_map" in (mesh.maps or {}),
+                }
+                prog = self.shaders.program(
+                    "geometry.vert.glsl",
+                    "emissive.frag.glsl",
+                    {k: v for k, v in defines.items() if v},
                 )
-                frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
+                uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
+                scene.bind_material(prog, index)
+                scene.vao(prog, index).render(moderngl.TRIANGLES)
             tgt.forward.depth_mask = True
         ctx.depth_func = "<"
         ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
@@ -399,6 +411,52 @@ class ForwardPass(RenderPass):
     def release(self) -> None:
         super().release()
         release_query(self._samples_query)
+
+
+class BlendPass(RenderPass):
+    """Blended (glass) meshes over the lit opaque picture of either path: sorted back to front
+    per mesh (by the distance of its bounding-box centre to the eye), lit per fragment with the
+    forward path's light loop, depth-tested against the opaque depth but not writing it. Runs
+    after the lighting and emissive passes (and a sky drawn into the background), before the
+    presenter."""
+
+    name = "blend"
+    reads = ("depth", "hdr")
+    writes = ("hdr",)
+
+    def configure(self, settings, scene, frame) -> bool:
+        return any(m.blended for m in scene.meshes)
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        ctx = self.ctx
+        scene = frame.scene
+        blended = [i for i, m in enumerate(scene.meshes) if m.blended]
+        ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)  # after the compute lighting
+        scene.light_buffer.bind_to_uniform_block(0)
+        ctx.enable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        ctx.disable(moderngl.CULL_FACE)
+        # Colour over what is behind; the target's alpha is left alone.
+        ctx.blend_func = (  # type: ignore[assignment]
+            moderngl.SRC_ALPHA,
+            moderngl.ONE_MINUS_SRC_ALPHA,
+            moderngl.ZERO,
+            moderngl.ONE,
+        )
+        for eye, tgt in zip(frame.eyes, res.targets):
+            order = back_to_front(scene, blended, eye.position)
+            tgt.forward.use()
+            tgt.forward.depth_mask = False
+            _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl", order)
+            tgt.forward.depth_mask = True
+        ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+
+
+def back_to_front(scene, indices: list[int], eye: np.ndarray) -> list[int]:
+    """Mesh indices ordered farthest first (by bounding-box centre); ties by index."""
+    position = np.asarray(eye, np.float64)
+    far = [-float(np.sum((np.asarray(scene.meshes[i].centre) - position) ** 2)) for i in indices]
+    return [i for _, i in sorted(zip(far, indices))]
 
 
 class PresentPass(RenderPass):
@@ -608,17 +666,22 @@ class ObjectIdPass(RenderPass):
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         self._ensure(res.targets[0].size)
-        prog = self.shaders.program("geometry.vert.glsl", "ids.frag.glsl")
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.BLEND)
         self.result = []
+        scene = frame.scene
         for eye, (ids, _depth, fbo) in zip(frame.eyes, self._targets):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            set_uniforms(prog, {"u_view_projection": eye.view_projection})
-            for index in range(len(frame.scene.meshes)):
+            for index, mesh in enumerate(scene.meshes):
+                # Masked materials are cut out here too: a hole shows what lies behind.
+                prog = self.shaders.program(
+                    "geometry.vert.glsl", "ids.frag.glsl", alpha_mask_defines(mesh)
+                )
+                set_uniforms(prog, {"u_view_projection": eye.view_projection})
+                scene.bind_material(prog, index, ("albedo",))
                 uniform(prog, "u_id").value = float(index + 1)
-                frame.scene.vao(prog, index).render(moderngl.TRIANGLES)
+                scene.vao(prog, index).render(moderngl.TRIANGLES)
             data = np.frombuffer(ids.read(), np.float32).reshape(ids.size[1], ids.size[0])
             self.result.append(np.flipud(data).astype(np.int32) - 1)
         self.ctx.disable(moderngl.DEPTH_TEST)

@@ -35,6 +35,7 @@ from render.gpu_scene import GpuScene
 from render.pass_graph import FrameContext, RenderPass, Resources, check_graph
 from render.passes import (
     CULL_MIN_LIGHTS,  # noqa: F401 - re-exported
+    BlendPass,
     EmissivePass,
     EyeTargets,
     ForwardPass,
@@ -63,6 +64,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     CpsMaskPass,
     EmissivePass,
     ForwardPass,
+    BlendPass,
     PresentPass,
     ABSplitPass,
     OverlayPass,

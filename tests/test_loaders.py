@@ -202,8 +202,11 @@ def test_sibenik_materials() -> None:
     assert by_name["staklo_crveno"].base_color[3] == pytest.approx(0.8)
     # Kd is sRGB: 0.734118 -> about 0.498 linear.
     assert by_name["kamen_zid"].base_color[0] == pytest.approx(0.498, abs=0.01)
-    # The same PNG named by several materials is one texture.
-    assert len(scene.textures) == 3
+    # The same PNG named by several materials is one texture: 3 colour maps, and the 2 bump
+    # maps as normal maps.
+    assert len({m.texture for m in scene.materials} - {None}) == 3
+    assert len({m.normal_texture for m in scene.materials} - {None}) == 2
+    assert len(scene.textures) == 5
     # Tiled floors and walls: texture coordinates beyond [0, 1] are kept, for repeat wrapping.
     floor = next(m for m in scene.meshes if m.name == "pod")
     assert floor.uvs.max() > 1.5 or floor.uvs.min() < -0.5

@@ -27,6 +27,7 @@ vec3 light_texel(ivec2 p) {
     if (depth >= 1.0) return u_background;
     vec4 albedo = texelFetch(u_gb_albedo, p, 0);
     vec4 normal = texelFetch(u_gb_normal, p, 0);
+    g_material_occlusion = gbuffer_occlusion(normal.xyz);
     vec2 ndc = (vec2(p) + 0.5) / vec2(u_size) * 2.0 - 1.0;
     vec4 world = u_inv_view_projection * vec4(ndc, depth * 2.0 - 1.0, 1.0);
     vec3 P = world.xyz / world.w;

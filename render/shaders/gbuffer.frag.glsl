@@ -1,11 +1,14 @@
 #version 430
-// G-buffer: albedo+metallic, world normal+roughness; depth comes from the depth attachment.
-#include "material.glsl"
+// G-buffer: albedo+metallic, world normal (its length: the material's occlusion)+roughness;
+// depth comes from the depth attachment. Every material input is per pixel (material.glsl).
+#include "alpha_mask.glsl"
+#include "material_occlusion.glsl"
 
 layout(location = 0) out vec4 out_albedo;
 layout(location = 1) out vec4 out_normal;
 
 void main() {
-    out_albedo = vec4(surface_albedo(), u_metallic);
-    out_normal = vec4(surface_normal(), u_roughness);
+    alpha_mask();
+    out_albedo = vec4(surface_albedo(), surface_metallic());
+    out_normal = vec4(gbuffer_normal(surface_normal(), surface_occlusion()), surface_roughness());
 }

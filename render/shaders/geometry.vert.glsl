@@ -1,9 +1,13 @@
 #version 430
-// Vertex stage shared by the G-buffer and the forward path.
+// Vertex stage shared by every pass that draws meshes.
 layout(location = 0) in vec3 in_position;
 layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec3 in_color;
+#ifdef HAS_TANGENTS
+layout(location = 4) in vec4 in_tangent;  // xyz along +u, w handedness
+out vec4 v_tangent;
+#endif
 
 uniform mat4 u_view_projection;
 
@@ -17,5 +21,8 @@ void main() {
     v_normal = in_normal;
     v_uv = in_uv;
     v_color = in_color;
+#ifdef HAS_TANGENTS
+    v_tangent = in_tangent;
+#endif
     gl_Position = u_view_projection * vec4(in_position, 1.0);
 }

@@ -1,9 +1,12 @@
 #version 430
 // Object ids (mesh index + 1; 0 = nothing) for error masks; rendered only on request.
+#include "alpha_mask.glsl"
+
 uniform float u_id;
 
 layout(location = 0) out vec4 out_id;
 
 void main() {
+    alpha_mask();
     out_id = vec4(u_id, 0.0, 0.0, 1.0);
 }

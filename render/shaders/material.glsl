@@ -1,5 +1,13 @@
-// Surface inputs shared by the G-buffer and the forward path.
-// Texture sampling is compiled per mode (a uniform branch made llvmpipe run every path):
+// Surface inputs shared by every pass that draws meshes (G-buffer, forward, blend, emissive,
+// ids and depth-only passes), per pixel from the material's maps (render/gpu_scene.py picks the
+// variant with material_defines and binds with GpuScene.bind_material):
+//   HAS_TEXTURE        base colour map (sRGB, alpha in A)
+//   HAS_TANGENTS       a normal map in tangent space (the mesh has a tangent attribute)
+//   HAS_MR_MAP         metallic-roughness map (G roughness, B metalness), times the factors
+//   HAS_OCCLUSION_MAP  ambient occlusion map (R), mixed by the strength
+//   HAS_EMISSIVE_MAP   emissive map (sRGB), times the emissive factor
+//   ALPHA_MASK         cut out below u_alpha_cutoff (alpha_mask.glsl)
+// Base colour sampling is compiled per TCR mode (a uniform branch made llvmpipe run every path):
 //   default    hardware trilinear mipmapping (TCR off: full quality)
 //   TCR_PAPER  exactly pyramid level j (the paper's method)
 //   TCR_CLAMP  mipmapping with the finest level limited to j
@@ -9,29 +17,56 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec3 v_color;
+#ifdef HAS_TANGENTS
+in vec4 v_tangent;
+uniform sampler2D u_normal_map;  // linear, xyz * 2 - 1
+uniform float u_normal_scale;
+#endif
 
 uniform vec4 u_base_color;  // linear RGBA
 uniform float u_roughness;
 uniform float u_metallic;
+uniform vec3 u_emissive;
+uniform float u_alpha_cutoff;
 #ifdef HAS_TEXTURE
 uniform sampler2D u_albedo;  // sRGB pyramid, repeat-wrapped; level 0 = the finest resident level
 uniform float u_level;       // TCR level j minus the resident base level (may be negative)
+#endif
+#ifdef HAS_MR_MAP
+uniform sampler2D u_mr_map;
+#endif
+#ifdef HAS_OCCLUSION_MAP
+uniform sampler2D u_occlusion_map;
+uniform float u_occlusion_strength;
+#endif
+#ifdef HAS_EMISSIVE_MAP
+uniform sampler2D u_emissive_map;
 #endif
 #ifdef TCR_TINT
 uniform vec3 u_tint;  // the level's legend colour, or (1, 1, 1) for level 0
 #endif
 
-vec3 surface_albedo() {
-    vec3 c = u_base_color.rgb * v_color;
+vec4 base_texel() {
 #ifdef HAS_TEXTURE
 #if defined(TCR_PAPER)
-    c *= textureLod(u_albedo, v_uv, max(u_level, 0.0)).rgb;
+    return textureLod(u_albedo, v_uv, max(u_level, 0.0));
 #elif defined(TCR_CLAMP)
-    c *= textureLod(u_albedo, v_uv, max(textureQueryLod(u_albedo, v_uv).y, u_level)).rgb;
+    return textureLod(u_albedo, v_uv, max(textureQueryLod(u_albedo, v_uv).y, u_level));
 #else
-    c *= texture(u_albedo, v_uv).rgb;
+    return texture(u_albedo, v_uv);
 #endif
+#else
+    return vec4(1.0);
 #endif
+}
+
+// Coverage: the factor's alpha times the texture's (OPAQUE materials have both at 1).
+float surface_alpha() {
+    return u_base_color.a * base_texel().a;
+}
+
+vec3 surface_albedo() {
+    vec3 c = u_base_color.rgb * v_color * base_texel().rgb;
 #ifdef TCR_TINT
     // Paint the level's colour with the surface's luminance kept, so the texture stays
     // readable and a brightly lit surface does not wash the colour out to white. Level 0
@@ -43,7 +78,55 @@ vec3 surface_albedo() {
     return clamp(c, vec3(0.0), vec3(1.0));
 }
 
+// World normal of this pixel, facing the viewer's side: interiors are seen from both sides (the
+// renderer culls nothing), so a back face shows its flipped normal, as glTF's doubleSided asks.
 vec3 surface_normal() {
     vec3 n = safe_normalize(v_normal, vec3(0.0, 1.0, 0.0));
-    return gl_FrontFacing ? n : -n;  // interiors are seen from both sides
+    float side = gl_FrontFacing ? 1.0 : -1.0;
+    n *= side;
+#ifdef HAS_TANGENTS
+    // Tangent frame, re-orthogonalised per pixel (interpolation bends it); flipped with the face.
+    vec3 m = texture(u_normal_map, v_uv).xyz * 2.0 - 1.0;  // outside the branch: derivatives
+    m.xy *= u_normal_scale;
+    vec3 t = v_tangent.xyz - n * dot(n, v_tangent.xyz);
+    t = safe_normalize(t, vec3(0.0)) * side;
+    if (dot(t, t) > 0.0) {
+        vec3 b = cross(n, t) * (v_tangent.w < 0.0 ? -1.0 : 1.0) * side;
+        n = safe_normalize(t * m.x + b * m.y + n * max(m.z, 0.0), n);
+    }
+#endif
+    return n;
+}
+
+float surface_roughness() {
+#ifdef HAS_MR_MAP
+    return clamp(u_roughness * texture(u_mr_map, v_uv).g, 0.02, 1.0);
+#else
+    return u_roughness;
+#endif
+}
+
+float surface_metallic() {
+#ifdef HAS_MR_MAP
+    return clamp(u_metallic * texture(u_mr_map, v_uv).b, 0.0, 1.0);
+#else
+    return u_metallic;
+#endif
+}
+
+// Ambient occlusion of the material (1: none); only the ambient term takes it.
+float surface_occlusion() {
+#ifdef HAS_OCCLUSION_MAP
+    return 1.0 + u_occlusion_strength * (texture(u_occlusion_map, v_uv).r - 1.0);
+#else
+    return 1.0;
+#endif
+}
+
+vec3 surface_emissive() {
+#ifdef HAS_EMISSIVE_MAP
+    return u_emissive * texture(u_emissive_map, v_uv).rgb;
+#else
+    return u_emissive;
+#endif
 }
