@@ -54,6 +54,7 @@ class Mesh:
     indices: np.ndarray  # (M, 3) uint32
     material: int = 0
     colors: np.ndarray | None = None  # (N, 3) float32 linear vertex colours, or None
+    ao: np.ndarray | None = None  # (N,) float32 baked ambient occlusion (app.ao_bake), or None
 
     @property
     def triangle_count(self) -> int:

@@ -90,6 +90,10 @@ TEXTURE_UNITS = {
             "eye_color",
             "text",
             "heat",
+            "ao",  # ambient occlusion (render/ao.py): the lighting's input, the pass's own
+            "ao_depth",
+            "ao_normal",
+            "ao_raw",
         )
     )
 }

@@ -60,6 +60,8 @@ class GpuScene:
                 )
             )
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
+        self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
+        self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
         self.lights = light_buffer_data(scene)
         if len(self.lights) > MAX_LIGHTS:
             log.warning(
@@ -88,9 +90,37 @@ class GpuScene:
             )
         return self._vaos[key]
 
+    def ao_vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
+        """Mesh ``index`` with its baked ambient occlusion as ``in_ao`` (render/ao.py); the
+        occlusion is uploaded on first use (1 where the mesh has none or a wrong count)."""
+        key = (program.glo, index)
+        if key not in self._ao_vaos:
+            mesh = self.meshes[index]
+            if index not in self._ao_buffers:
+                src = self.scene.meshes[index]
+                n = int(src.positions.shape[0])
+                ao = src.ao if src.ao is not None and len(src.ao) == n else np.ones(n)
+                self._ao_buffers[index] = self.ctx.buffer(np.asarray(ao, np.float32).tobytes())
+            fmt = " ".join(
+                f if a in program else f[0] + "x4"
+                for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS)
+            )
+            attrs = [a for a in VERTEX_ATTRS if a in program]
+            content: list = [(mesh.vbo, fmt, *attrs)]
+            if "in_ao" in program:
+                content.append((self._ao_buffers[index], "1f", "in_ao"))
+            self._ao_vaos[key] = self.ctx.vertex_array(
+                program, content, index_buffer=mesh.ibo, index_element_size=4
+            )
+        return self._ao_vaos[key]
+
     def release(self) -> None:
-        for v in self._vaos.values():
+        for v in (*self._vaos.values(), *self._ao_vaos.values()):
             v.release()
+        for b in self._ao_buffers.values():
+            b.release()
+        self._ao_vaos.clear()
+        self._ao_buffers.clear()
         for m in self.meshes:
             m.vbo.release()
             m.ibo.release()

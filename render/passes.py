@@ -105,13 +105,19 @@ def scene_uniforms(prog: moderngl.Program | moderngl.ComputeShader, frame: Frame
 
 
 def _draw_meshes(
-    ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameContext, eye: EyeView, fragment: str
+    ctx: moderngl.Context,
+    shaders: ShaderLibrary,
+    frame: FrameContext,
+    eye: EyeView,
+    fragment: str,
+    ao: moderngl.Texture | None = None,
 ) -> None:
-    """Draw every mesh for one eye with its material (texture and TCR mode as variants)."""
+    """Draw every mesh for one eye with its material (texture and TCR mode as variants);
+    ``ao``: the eye's ambient occlusion the forward path shades with (render/ao.py)."""
     streamer = frame.scene.streamer
     tcr = frame.levels is not None
     for index, mesh in enumerate(frame.scene.meshes):
-        defines: dict[str, object] = {"HAS_TEXTURE": mesh.texture is not None}
+        defines: dict[str, object] = {"HAS_TEXTURE": mesh.texture is not None, "AO": ao is not None}
         if tcr:
             defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
             defines["TCR_TINT"] = frame.tint
@@ -131,6 +137,8 @@ def _draw_meshes(
         if "u_eye" in prog:  # the forward path: it lights the fragments itself
             uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
+        if ao is not None:
+            bind_texture(prog, "ao", ao)
         level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
             resident = streamer.resident[mesh.texture]
@@ -163,7 +171,7 @@ class GBufferPass(RenderPass):
 
 
 # What the deferred lighting uses when an earlier pass made it (deferred.glsl variants).
-LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map")
+LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map", "ao")
 
 
 class LightingPass(RenderPass):
@@ -216,6 +224,7 @@ def lighting_defines(res: Resources) -> dict[str, object]:
     defines: dict[str, object] = {
         "TILED_LIGHTS": res.written("tile_lists"),
         "INDIRECT": res.get("indirect") is not None,
+        "AO": res.get("ao") is not None,  # ambient occlusion (render/ao.py)
     }
     if fused is not None:
         defines.update(INDIRECT_FUSED=True, **fused[1])
@@ -238,6 +247,8 @@ def deferred_inputs(
     bind_texture(prog, "gb_normal", tgt.normal)
     bind_texture(prog, "gb_depth", tgt.depth)
     use_tiles(prog, res, index)
+    if res.get("ao") is not None:
+        bind_texture(prog, "ao", res.get("ao")[index])
     set_uniforms(
         prog,
         {
@@ -374,6 +385,7 @@ class ForwardPass(RenderPass):
     """The baseline: geometry lit per fragment, straight into each eye's HDR target."""
 
     name = "forward"
+    optional_reads = ("ao",)
     writes = ("depth", "hdr")
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
@@ -388,11 +400,13 @@ class ForwardPass(RenderPass):
         frame.scene.light_buffer.bind_to_uniform_block(0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        ao = res.get("ao")
         with self._samples_query:
-            for eye, tgt in zip(frame.eyes, res.targets):
+            for index, (eye, tgt) in enumerate(zip(frame.eyes, res.targets)):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
-                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl")
+                eye_ao = ao[index] if ao is not None else None
+                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl", eye_ao)
         self.samples = int(self._samples_query.samples)
         ctx.disable(moderngl.DEPTH_TEST)
 

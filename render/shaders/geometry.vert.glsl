@@ -11,11 +11,18 @@ out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
 out vec3 v_color;
+#ifdef AO_BAKED
+layout(location = 7) in float in_ao;  // baked ambient occlusion (render/ao.py)
+out float v_ao;
+#endif
 
 void main() {
     v_world = in_position;
     v_normal = in_normal;
     v_uv = in_uv;
     v_color = in_color;
+#ifdef AO_BAKED
+    v_ao = in_ao;
+#endif
     gl_Position = u_view_projection * vec4(in_position, 1.0);
 }
