@@ -1,18 +1,30 @@
-"""Ambient occlusion baked per vertex at load time, with embree (``app.raycast.RayCaster``).
+"""Ambient occlusion baked per vertex with embree (``app.raycast.RayCaster``).
 
 Each vertex casts cosine-weighted rays over the hemisphere of its normal, up to ``radius_m``;
 its occlusion is the share of rays that reach open space (1: nothing nearby, 0: buried). With
 cosine-weighted directions that share is the cosine-weighted visibility the ambient term needs.
+Interiors are drawn from both sides (a room's shell often has its normals facing out), so each
+vertex gets two values, ``Mesh.ao[:, 0]`` over its normal and ``[:, 1]`` behind it; the
+renderer picks the side it sees.
 
-The cost is capped: vertices at the same place with the same normal (a triangle soup repeats
-each corner several times) are cast once, and a ray budget lowers the rays per vertex on huge
-interiors (at least ``MIN_RAYS``). The directions come from a fixed seed, so a bake is
-deterministic. Degenerate input (NaN vertices, zero-length normals, empty meshes) gives 1.
+Per-vertex values can only be as fine as the mesh: a floor made of two triangles has its four
+vertices in the room's corners, and casting from the corners would darken the whole floor. So
+each vertex casts from halfway towards the centre of the triangles around it: on a fine mesh
+that is a few centimetres, on a coarse one it lands in the open and the surface stays bright
+(coarse meshes get no corner shading from the bake; the screen method has no such limit).
+
+The bake runs when first needed, in a worker thread (:class:`BackgroundBake`); the
+renderer uploads it when it is ready. The cost is capped: vertices at the same place with the
+same normal (a triangle soup repeats each corner several times) are cast once, and a ray
+budget lowers the rays per vertex on huge interiors (at least ``MIN_RAYS``). The directions
+come from a fixed seed, so a bake is deterministic. Degenerate input (NaN vertices,
+zero-length normals, empty meshes) gives 1.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from dataclasses import dataclass, replace
 
@@ -25,7 +37,7 @@ log = logging.getLogger(__name__)
 
 RAYS = 16  # per vertex, when the budget allows
 MIN_RAYS = 4
-RAY_BUDGET = 3_000_000  # rays per bake: about 1-2 s of embree on two cores
+RAY_BUDGET = 4_000_000  # rays per bake, both sides: about 2 s of embree on two cores
 BATCH = 1_000_000  # rays per embree call (bounds the temporary arrays)
 SEED = 14
 OFFSET_M = 2e-3  # ray origins leave the surface by this much (no self-hits)
@@ -35,7 +47,7 @@ OFFSET_M = 2e-3  # ray origins leave the surface by this much (no self-hits)
 class BakeReport:
     vertices: int  # vertices of the scene
     cast: int  # distinct vertices cast from
-    rays_per_vertex: int
+    rays_per_vertex: int  # per side
     seconds: float
 
 
@@ -104,6 +116,27 @@ def vertex_occlusion(
     return out
 
 
+def sample_points(mesh_positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Each vertex moved halfway towards the mean centre of its triangles (float64)."""
+    pos = np.asarray(mesh_positions, np.float64).reshape(-1, 3)
+    idx = np.asarray(indices, np.int64).reshape(-1, 3)
+    n = pos.shape[0]
+    ok = np.all((idx >= 0) & (idx < n), axis=1)
+    idx = idx[ok]
+    if idx.size == 0:
+        return pos
+    centre = pos[idx].mean(axis=1)
+    total = np.zeros_like(pos)
+    count = np.zeros(n)
+    for k in range(3):
+        np.add.at(total, idx[:, k], centre)
+        np.add.at(count, idx[:, k], 1.0)
+    used = count > 0
+    out = pos.copy()
+    out[used] = 0.5 * (pos[used] + total[used] / count[used, None])
+    return np.where(np.isfinite(out), out, pos)
+
+
 def bake_scene(
     scene: Scene,
     caster: RayCaster | None = None,
@@ -111,7 +144,8 @@ def bake_scene(
     rays: int = RAYS,
     budget: int = RAY_BUDGET,
 ) -> tuple[Scene, BakeReport]:
-    """``scene`` with ``Mesh.ao`` set on every mesh (a copy; the meshes' arrays are shared)."""
+    """``scene`` with ``Mesh.ao`` (N, 2) set on every mesh (a copy; the other arrays are
+    shared): the occlusion over each vertex's normal and behind it."""
     began = time.perf_counter()
     if caster is None:
         caster = scene.ray_caster or RayCaster(scene.triangles())
@@ -119,7 +153,7 @@ def bake_scene(
     total = sum(int(m.positions.shape[0]) for m in meshes)
     if total == 0:
         return scene, BakeReport(0, 0, 0, 0.0)
-    pos = np.concatenate([np.asarray(m.positions, np.float32).reshape(-1, 3) for m in meshes])
+    pos = np.concatenate([sample_points(m.positions, m.indices) for m in meshes])
     nrm = np.concatenate([np.asarray(m.normals, np.float32).reshape(-1, 3) for m in meshes])
     # One cast per place and direction: 1 mm positions, normals to about a degree.
     key = np.concatenate(
@@ -131,11 +165,13 @@ def bake_scene(
     ).astype(np.int64)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
-    per_vertex = int(np.clip(budget // max(1, first.size), MIN_RAYS, rays))
-    ao = vertex_occlusion(pos[first], nrm[first], caster, radius_m, per_vertex)[inverse]
+    per_vertex = int(np.clip(budget // max(1, 2 * first.size), MIN_RAYS, rays))
+    p, n = pos[first], nrm[first]
+    sides = [vertex_occlusion(p, s * n, caster, radius_m, per_vertex) for s in (1.0, -1.0)]
+    ao = np.stack(sides, axis=1)[inverse]
     # A vertex with bad data was cast as part of a shared key: keep 1 for it.
     bad = ~(np.isfinite(pos).all(axis=1) & np.isfinite(nrm).all(axis=1))
-    ao[bad] = 1.0
+    ao[bad] = 1.0  # both sides
     baked = []
     offset = 0
     for m in meshes:
@@ -164,3 +200,30 @@ def ensure_baked(scene: Scene, caster: RayCaster | None = None) -> Scene:
     except Exception:  # noqa: BLE001 - occlusion is a nicety, never a reason to fail a load
         log.exception("baking ambient occlusion failed for %s", scene.name)
         return scene
+
+
+class BackgroundBake:
+    """:func:`ensure_baked` in a worker thread: the renderer starts one when a scene without
+    occlusion is first drawn with the baked method, draws it unoccluded meanwhile, and takes
+    ``result`` once ``done`` (so a load never waits for a bake it may not use)."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.result: Scene | None = None
+        self._finished = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="ao-bake", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            self.result = ensure_baked(self.scene, self.scene.ray_caster)
+        finally:
+            self._finished.set()
+
+    @property
+    def done(self) -> bool:
+        return self._finished.is_set()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the bake is done (tests, benchmarks); whether it is."""
+        return self._finished.wait(timeout)

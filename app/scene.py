@@ -54,7 +54,7 @@ class Mesh:
     indices: np.ndarray  # (M, 3) uint32
     material: int = 0
     colors: np.ndarray | None = None  # (N, 3) float32 linear vertex colours, or None
-    ao: np.ndarray | None = None  # (N,) float32 baked ambient occlusion (app.ao_bake), or None
+    ao: np.ndarray | None = None  # (N, 2) float32 baked occlusion, front and back (app.ao_bake)
 
     @property
     def triangle_count(self) -> int:

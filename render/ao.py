@@ -3,8 +3,9 @@
 ``render.ao`` picks the method:
 
 - ``screen``: rays marched against the depth buffer at half resolution (ao_screen.frag.glsl)
-  from the G-buffer's depth and normals, then a bilateral 4x4 upsample to full resolution
-  (ao_upsample.frag.glsl). A fixed turn pattern, no time: the same picture every frame.
+  from the G-buffer's depth and normals, a 2x2 average that takes out its fixed 2x2 turn
+  pattern (ao_blur.frag.glsl), then a bilateral upsample to full resolution
+  (ao_upsample.frag.glsl). No time, no noise: the same picture every frame.
 - ``baked``: the occlusion ``app.ao_bake`` cast per vertex at load, drawn as a vertex attribute
   (ao_vertex.frag.glsl) into the same image, depth-tested against the G-buffer.
 
@@ -36,14 +37,17 @@ class AoTargets:
         self.size = size
         w, h = size
         self.ao = ctx.texture(size, 1, dtype="f1")
-        self.raw = ctx.texture((max(1, (w + 1) // 2), max(1, (h + 1) // 2)), 2, dtype="f4")
+        half = (max(1, (w + 1) // 2), max(1, (h + 1) // 2))
+        self.raw = ctx.texture(half, 2, dtype="f4")
+        self.blurred = ctx.texture(half, 2, dtype="f4")
         self.depth = ctx.depth_texture(size)
         self.normal = ctx.texture(size, 4, dtype="f2")
-        for t in (self.ao, self.raw, self.depth, self.normal):
+        for t in (self.ao, self.raw, self.blurred, self.depth, self.normal):
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             t.repeat_x = t.repeat_y = False
         self.ao_fbo = ctx.framebuffer([self.ao])
         self.raw_fbo = ctx.framebuffer([self.raw])
+        self.blurred_fbo = ctx.framebuffer([self.blurred])
         self.prepass_fbo = ctx.framebuffer([self.ao, self.normal], self.depth)
         self._over: dict[int, moderngl.Framebuffer] = {}  # ao over a G-buffer depth, by glo
 
@@ -58,16 +62,19 @@ class AoTargets:
         return fbo
 
     def release(self) -> None:
-        for obj in (
+        objects: list[moderngl.Framebuffer | moderngl.Texture] = [
             *self._over.values(),
             self.ao_fbo,
             self.raw_fbo,
+            self.blurred_fbo,
             self.prepass_fbo,
             self.ao,
             self.raw,
+            self.blurred,
             self.depth,
             self.normal,
-        ):
+        ]
+        for obj in objects:
             obj.release()
         self._over.clear()
 
@@ -164,24 +171,34 @@ class AmbientOcclusionPass(RenderPass):
     def _screen(
         self, eye: EyeView, own: AoTargets, depth: moderngl.Texture, normal: moderngl.Texture
     ) -> None:
-        defines = {"AO_DIRECTIONS": AO_DIRECTIONS, "AO_STEPS": AO_STEPS}
+        defines: dict[str, object] = {"AO_DIRECTIONS": AO_DIRECTIONS, "AO_STEPS": AO_STEPS}
         trace = self.shaders.program("fullscreen.vert.glsl", "ao_screen.frag.glsl", defines)
+        proj = eye.projection
         common = {
-            "u_inv_view_projection": eye.inverse_view_projection,
-            "u_eye": tuple(eye.position),
-            "u_size": own.size,
+            "u_depth_a": float(proj[2, 2]),
+            "u_depth_b": float(proj[2, 3]),
         }
         own.raw_fbo.use()
         bind_texture(trace, "ao_depth", depth)
         bind_texture(trace, "ao_normal", normal)
         set_uniforms(
             trace,
-            {**common, "u_view_projection": eye.view_projection, "u_radius": self.radius_m},
+            {
+                **common,
+                "u_view_projection": eye.view_projection,
+                "u_inv_view_projection": eye.inverse_view_projection,
+                "u_radius": self.radius_m,
+                "u_size": own.size,
+            },
         )
         self.fullscreen(trace)
+        blur = self.shaders.program("fullscreen.vert.glsl", "ao_blur.frag.glsl")
+        own.blurred_fbo.use()
+        bind_texture(blur, "ao_raw", own.raw)
+        self.fullscreen(blur)
         up = self.shaders.program("fullscreen.vert.glsl", "ao_upsample.frag.glsl")
         own.ao_fbo.use()
-        bind_texture(up, "ao_raw", own.raw)
+        bind_texture(up, "ao_raw", own.blurred)
         bind_texture(up, "ao_depth", depth)
         set_uniforms(up, {**common, "u_ao_strength": self.strength})
         self.fullscreen(up)

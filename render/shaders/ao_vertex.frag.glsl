@@ -6,7 +6,7 @@
 in vec3 v_world;
 in vec3 v_normal;
 #ifdef AO_BAKED
-in float v_ao;
+in vec2 v_ao;  // over the normal, behind it
 #endif
 uniform float u_ao_strength;
 
@@ -18,7 +18,8 @@ layout(location = 1) out vec4 out_normal;
 void main() {
     float a = 1.0;
 #ifdef AO_BAKED
-    a = (isnan(v_ao) || isinf(v_ao)) ? 1.0 : clamp(v_ao, 0.0, 1.0);
+    a = gl_FrontFacing ? v_ao.x : v_ao.y;  // the side surface_normal() shades
+    a = (isnan(a) || isinf(a)) ? 1.0 : clamp(a, 0.0, 1.0);
 #endif
     out_ao = vec4(mix(1.0, a, u_ao_strength), 0.0, 0.0, 1.0);
 #ifdef PREPASS

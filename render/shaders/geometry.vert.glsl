@@ -12,8 +12,8 @@ out vec3 v_normal;
 out vec2 v_uv;
 out vec3 v_color;
 #ifdef AO_BAKED
-layout(location = 7) in float in_ao;  // baked ambient occlusion (render/ao.py)
-out float v_ao;
+layout(location = 7) in vec2 in_ao;  // baked occlusion, front and back (render/ao.py)
+out vec2 v_ao;
 #endif
 
 void main() {
