@@ -309,22 +309,23 @@ class RenderSettings:
     ao: str = _opt(
         "screen",
         "Darkens the even ambient light in corners, creases and under furniture, where "
-        "light from the room reaches less. Computed on the screen each frame, or once per "
-        "corner of every surface when the model loads. Off while light bouncing from the "
-        "lamps is on: it darkens those places itself.",
+        "light from the room reaches less. Worked out from the picture each frame, or once "
+        "for the whole model (a few seconds after it opens; rooms built of large flat pieces "
+        "then stay even). Off while light bouncing from the lamps is on: it darkens those "
+        "places itself.",
         label="Shade corners and creases",
         paper="Ambient occlusion: screen-space (SSAO) or baked per vertex",
         choices=("off", "screen", "baked"),
         choice_labels={
             "off": "Off",
             "screen": "From the picture (every frame)",
-            "baked": "Computed when loading",
+            "baked": "Once for the model",
         },
     )
     ao_radius_m: float = _opt(
         0.75,
-        "How far away a surface still darkens its neighbour when computed from the "
-        "picture; the shading computed when loading uses 0.75 m.",
+        "How far away a surface still darkens its neighbour, when worked out from the "
+        "picture; the shading worked out once for the model uses 0.75 m.",
         label="Corner shading reach",
         unit="m",
         lo=0.1,

@@ -13,6 +13,14 @@ The forward method has no G-buffer: the pass then draws its own depth and normal
 (PREPASS). The lighting multiplies only the ambient term by the image (ao.glsl), never the
 lamps. With photon-mapped indirect light the bounce light replaces the even ambient estimate,
 so the pass leaves no image and the ambient term stays as it was.
+
+The default is ``screen``. Against per-pixel ray-traced occlusion (embree, 128 rays, the same
+0.75 m reach) it is closer on both the showroom and a shared interior, and it does not depend
+on how finely a model is cut into triangles: the showroom's shell is two triangles a wall, so
+no per-vertex bake can shade its corners. It costs about as much as the deferred lighting on
+llvmpipe (half resolution, 8 rays of 4 steps); the bake costs little on small scenes but
+draws the geometry once more per eye, as dear as the G-buffer on a 380,000-triangle room.
+Figures: the branch's report (issue 14).
 """
 
 from __future__ import annotations

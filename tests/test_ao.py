@@ -304,3 +304,19 @@ def test_with_photon_indirect_light_the_ambient_term_is_not_occluded(host, corne
             assert r.ao.skipped_for_indirect == (method == "screen")
             r.set_photons(None)
     assert np.array_equal(pictures["off"], pictures["screen"])
+
+
+@pytest.mark.parametrize(
+    "values, expected",
+    [
+        ({}, ["gbuffer", "ao", "lighting", "emissive"]),
+        ({"render.path": "forward"}, ["ao", "forward"]),
+        ({"cps.mode": "cps", "cps.temporal": False}, ["gbuffer", "cps_levels", "ao"]),
+        ({"render.ao": "off"}, ["gbuffer", "lighting", "emissive"]),
+    ],
+)
+def test_the_ao_pass_runs_after_the_g_buffer_before_the_lighting(host, corner, values, expected):
+    draw(host, corner, **{k.replace(".", "__"): v for k, v in values.items()})
+    assert list(host.renderer.pass_ms())[: len(expected)] == expected
+    assert Settings().render.ao == "screen"  # the default (render/ao.py says why)
+    host.settings.set("cps.temporal", Settings().cps.temporal)
