@@ -37,8 +37,8 @@ log = logging.getLogger(__name__)
 
 RAYS = 16  # per vertex, when the budget allows
 MIN_RAYS = 4
-RAY_BUDGET = 4_000_000  # rays per bake, both sides: about 2 s of embree on two cores
-BATCH = 1_000_000  # rays per embree call (bounds the temporary arrays)
+RAY_BUDGET = 3_000_000  # rays per bake, both sides: about 2 s of embree on two quiet cores
+BATCH = 250_000  # rays per embree call: bounds the arrays and how long one holds the GIL
 SEED = 14
 OFFSET_M = 2e-3  # ray origins leave the surface by this much (no self-hits)
 

@@ -14,7 +14,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from app.ao_bake import ensure_baked
 from app.default_lights import safe_default_lights
 from app.progress import Progress
 from app.raycast import RayCaster
@@ -122,8 +121,6 @@ def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = Non
             notes.append(note)
     if spawn.floor_y is None:
         log.info("%s: no interior found, viewing it from outside", scene.name)
-    progress.report(0.97, "Shading corners")
-    scene = ensure_baked(scene, caster)  # ambient occlusion per vertex (app.ao_bake)
     # The geometry was sanitized before the search: only what it added is checked again, and
     # the caster stays with the scene, so the session reuses it (one embree build per load).
     return replace(
