@@ -6,7 +6,8 @@
   from the G-buffer's depth and normals, a 2x2 average that takes out its fixed 2x2 turn
   pattern (ao_blur.frag.glsl), then a bilateral upsample to full resolution
   (ao_upsample.frag.glsl). No time, no noise: the same picture every frame.
-- ``baked``: the occlusion ``app.ao_bake`` cast per vertex at load, drawn as a vertex attribute
+- ``baked``: the occlusion ``app.ao_bake`` casts per vertex (in the background, the first
+  time a scene is drawn this way), drawn as a vertex attribute
   (ao_vertex.frag.glsl) into the same image, depth-tested against the G-buffer.
 
 The forward method has no G-buffer: the pass then draws its own depth and normals first
