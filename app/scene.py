@@ -73,6 +73,7 @@ class Mesh:
     # (N, 4) float32 unit tangent (xyz) and handedness (w = +-1, bitangent = w * cross(N, T),
     # pointing along +v of ``uvs``); only for meshes whose material has a normal map.
     tangents: np.ndarray | None = None
+    ao: np.ndarray | None = None  # (N, 2) float32 baked occlusion, front and back (app.ao_bake)
 
     @property
     def triangle_count(self) -> int:

@@ -306,6 +306,45 @@ class RenderSettings:
         decimals=2,
         step=0.01,
     )
+    ao: str = _opt(
+        "screen",
+        "Darkens the even ambient light in corners, creases and under furniture, where "
+        "light from the room reaches less. Worked out from the picture each frame, or once "
+        "for the whole model (a few seconds after it opens; rooms built of large flat pieces "
+        "then stay even). Off while light bouncing from the lamps is on: it darkens those "
+        "places itself.",
+        label="Shade corners and creases",
+        paper="Ambient occlusion: screen-space (SSAO) or baked per vertex",
+        choices=("off", "screen", "baked"),
+        choice_labels={
+            "off": "Off",
+            "screen": "From the picture (every frame)",
+            "baked": "Once for the model",
+        },
+    )
+    ao_radius_m: float = _opt(
+        0.75,
+        "How far away a surface still darkens its neighbour, when worked out from the "
+        "picture; the shading worked out once for the model uses 0.75 m.",
+        label="Corner shading reach",
+        unit="m",
+        lo=0.1,
+        hi=2.0,
+        decimals=2,
+        step=0.05,
+    )
+    ao_strength: float = _opt(
+        1.0,
+        "How much the corners darken: 0% leaves the ambient light even, 100% darkens "
+        "it fully by what is around.",
+        label="Corner shading strength",
+        unit="%",
+        lo=0.0,
+        hi=1.0,
+        decimals=0,
+        step=0.05,
+        scale=100.0,
+    )
     overlay: bool = _opt(
         True, "Draws the frames per second in a corner of the view.", label="Show frame rate"
     )

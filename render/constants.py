@@ -94,6 +94,10 @@ TEXTURE_UNITS = {
             "mr_map",
             "occlusion_map",
             "emissive_map",
+            "ao",  # ambient occlusion (render/ao.py): the lighting's input, the pass's own
+            "ao_depth",
+            "ao_normal",
+            "ao_raw",
         )
     )
 }

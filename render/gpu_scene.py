@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
+from app.ao_bake import BackgroundBake
 from app.scene import Material, Scene, Texture
 from app.tangents import generate_tangents
 from render.constants import MAX_LIGHTS
@@ -131,6 +132,9 @@ class GpuScene:
                 )
             )
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
+        self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
+        self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
+        self.ao_bake: BackgroundBake | None = None  # started when AO first draws, if needed
         self.lights = light_buffer_data(scene)
         if len(self.lights) > MAX_LIGHTS:
             log.warning(
@@ -214,9 +218,54 @@ class GpuScene:
             )
         return self._vaos[key]
 
+    def ao_vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
+        """Mesh ``index`` with its baked ambient occlusion as ``in_ao`` (render/ao.py); the
+        occlusion is uploaded on first use (1 where the mesh has none or a wrong count). A
+        scene without starts its bake in the background and is drawn unoccluded until then."""
+        self._poll_ao_bake()
+        key = (program.glo, index)
+        if key not in self._ao_vaos:
+            mesh = self.meshes[index]
+            if index not in self._ao_buffers:
+                src = self.scene.meshes[index]
+                n = int(src.positions.shape[0])
+                ok = src.ao is not None and src.ao.shape == (n, 2)
+                ao = src.ao if ok else np.ones((n, 2))
+                self._ao_buffers[index] = self.ctx.buffer(np.asarray(ao, np.float32).tobytes())
+            fmt = " ".join(
+                f if a in program else f[0] + "x4"
+                for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS)
+            )
+            attrs = [a for a in VERTEX_ATTRS if a in program]
+            content: list = [(mesh.vbo, fmt, *attrs)]
+            if "in_ao" in program:
+                content.append((self._ao_buffers[index], "2f", "in_ao"))
+            self._ao_vaos[key] = self.ctx.vertex_array(
+                program, content, index_buffer=mesh.ibo, index_element_size=4
+            )
+        return self._ao_vaos[key]
+
+    def _poll_ao_bake(self) -> None:
+        if self.ao_bake is None:
+            if all(m.ao is not None for m in self.scene.meshes):
+                return
+            self.ao_bake = BackgroundBake(self.scene)
+        if self.ao_bake.done and self.ao_bake.result is not None:
+            self.scene, self.ao_bake.result = self.ao_bake.result, None
+            for v in self._ao_vaos.values():  # next draws upload the baked values
+                v.release()
+            for b in self._ao_buffers.values():
+                b.release()
+            self._ao_vaos.clear()
+            self._ao_buffers.clear()
+
     def release(self) -> None:
-        for v in self._vaos.values():
+        for v in (*self._vaos.values(), *self._ao_vaos.values()):
             v.release()
+        for b in self._ao_buffers.values():
+            b.release()
+        self._ao_vaos.clear()
+        self._ao_buffers.clear()
         for m in self.meshes:
             m.vbo.release()
             m.ibo.release()

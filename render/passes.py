@@ -112,9 +112,11 @@ def _draw_meshes(
     eye: EyeView,
     fragment: str,
     order: list[int] | None = None,
+    ao: moderngl.Texture | None = None,
 ) -> None:
     """Draw meshes for one eye with their materials (maps, alpha mode and TCR mode as
-    variants): ``order``, or every mesh that is not blended (the blend pass draws those)."""
+    variants): ``order``, or every mesh that is not blended (the blend pass draws those);
+    ``ao``: the eye's ambient occlusion the forward path shades with (render/ao.py)."""
     scene = frame.scene
     streamer = scene.streamer
     tcr = frame.levels is not None
@@ -123,6 +125,8 @@ def _draw_meshes(
     for index in order:
         mesh = scene.meshes[index]
         defines = material_defines(mesh)
+        if ao is not None:
+            defines["AO"] = True
         if tcr:
             defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
             defines["TCR_TINT"] = frame.tint
@@ -132,6 +136,8 @@ def _draw_meshes(
         if "u_eye" in prog:  # the forward and blend paths: they light the fragments themselves
             uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
+        if ao is not None:
+            bind_texture(prog, "ao", ao)
         level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
             resident = streamer.resident[mesh.texture]
@@ -163,7 +169,7 @@ class GBufferPass(RenderPass):
 
 
 # What the deferred lighting uses when an earlier pass made it (deferred.glsl variants).
-LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map")
+LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map", "ao")
 
 
 class LightingPass(RenderPass):
@@ -216,6 +222,7 @@ def lighting_defines(res: Resources) -> dict[str, object]:
     defines: dict[str, object] = {
         "TILED_LIGHTS": res.written("tile_lists"),
         "INDIRECT": res.get("indirect") is not None,
+        "AO": res.get("ao") is not None,  # ambient occlusion (render/ao.py)
     }
     if fused is not None:
         defines.update(INDIRECT_FUSED=True, **fused[1])
@@ -238,6 +245,8 @@ def deferred_inputs(
     bind_texture(prog, "gb_normal", tgt.normal)
     bind_texture(prog, "gb_depth", tgt.depth)
     use_tiles(prog, res, index)
+    if res.get("ao") is not None:
+        bind_texture(prog, "ao", res.get("ao")[index])
     set_uniforms(
         prog,
         {
@@ -386,6 +395,7 @@ class ForwardPass(RenderPass):
     """The baseline: geometry lit per fragment, straight into each eye's HDR target."""
 
     name = "forward"
+    optional_reads = ("ao",)
     writes = ("depth", "hdr")
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
@@ -400,11 +410,13 @@ class ForwardPass(RenderPass):
         frame.scene.light_buffer.bind_to_uniform_block(0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        ao = res.get("ao")
         with self._samples_query:
-            for eye, tgt in zip(frame.eyes, res.targets):
+            for index, (eye, tgt) in enumerate(zip(frame.eyes, res.targets)):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
-                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl")
+                eye_ao = ao[index] if ao is not None else None
+                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl", ao=eye_ao)
         self.samples = int(self._samples_query.samples)
         ctx.disable(moderngl.DEPTH_TEST)
 

@@ -21,6 +21,7 @@ from app.scene import Scene
 from app.settings import Settings
 from app.tcr import finest_per_texture
 from render.ab_split import ABSplitPass, SplitFrame
+from render.ao import AmbientOcclusionPass
 from render.constants import CPS_LEVELS
 from render.cps import (
     CpsFilterPass,
@@ -57,6 +58,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     LightCullPass,
     CpsLevelPass,
     PhotonPass,
+    AmbientOcclusionPass,
     LightingPass,
     CpsLightingPass,
     CpsFilterPass,
@@ -89,6 +91,7 @@ class Renderer:
     light_cull = _Pass[LightCullPass]()
     cps_levels = _Pass[CpsLevelPass]()
     photons = _Pass[PhotonPass]()
+    ao = _Pass[AmbientOcclusionPass]()
     lighting = _Pass[LightingPass]()
     cps_lighting = _Pass[CpsLightingPass]()
     cps_filter = _Pass[CpsFilterPass]()

@@ -102,6 +102,7 @@ def test_each_pass_decides_and_the_list_is_what_the_old_renderer_ran(
         "cps.visualize",
     ):
         s.set(key, defaults.get(key))
+    s.set("render.ao", "off")  # the passes before ambient occlusion; its own: tests/test_ao.py
     for key, value in values.items():
         s.set(key, value)
     with host.ctx:

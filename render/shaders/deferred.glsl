@@ -23,6 +23,7 @@ vec3 light_texel(ivec2 p) {
 #ifdef TILED_LIGHTS
     use_tile_of(p);
 #endif
+    use_ao_of(p);
     float depth = texelFetch(u_gb_depth, p, 0).r;
     if (depth >= 1.0) return u_background;
     vec4 albedo = texelFetch(u_gb_albedo, p, 0);

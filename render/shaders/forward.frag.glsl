@@ -10,6 +10,7 @@ layout(location = 0) out vec4 out_color;
 
 void main() {
     alpha_mask();
+    use_ao_of(ivec2(gl_FragCoord.xy));
     vec3 V = safe_normalize(u_eye - v_world, vec3(0.0, 0.0, 1.0));
     g_material_occlusion = surface_occlusion();
     vec3 lit = shade(v_world, surface_normal(), V, surface_albedo(), surface_roughness(),

@@ -15,6 +15,10 @@ out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
 out vec3 v_color;
+#ifdef AO_BAKED
+layout(location = 7) in vec2 in_ao;  // baked occlusion, front and back (render/ao.py)
+out vec2 v_ao;
+#endif
 
 void main() {
     v_world = in_position;
@@ -23,6 +27,9 @@ void main() {
     v_color = in_color;
 #ifdef HAS_TANGENTS
     v_tangent = in_tangent;
+#endif
+#ifdef AO_BAKED
+    v_ao = in_ao;
 #endif
     gl_Position = u_view_projection * vec4(in_position, 1.0);
 }

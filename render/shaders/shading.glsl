@@ -2,6 +2,7 @@
 // (compute or fragment) and the forward path, so both paths give the same picture.
 #include "common.glsl"
 #include "material_occlusion.glsl"
+#include "ao.glsl"
 
 // A uniform block, not a storage buffer: on llvmpipe, SSBO loads in this loop cost 2.5x more
 // (measured: 161 ms vs 65 ms for 4 lights at 2x640x720).
@@ -39,7 +40,7 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
     vec3 spec_color = mix(vec3(0.04), albedo, metallic);
     float shininess = exp2(10.0 * (1.0 - roughness) + 1.0);
     float spec_norm = (shininess + 8.0) / (8.0 * PI);
-    vec3 sum = u_ambient * albedo * material_occlusion();
+    vec3 sum = u_ambient * albedo * material_occlusion() * ambient_occlusion();
 #ifdef TILED_LIGHTS
     uint tile_count = texelFetch(u_tile_counts, g_tile, 0).r;
     bool every = tile_count == ALL_LIGHTS;
