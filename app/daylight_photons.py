@@ -1,0 +1,426 @@
+"""Daylight photons: the sun and the sky shining into a room through its openings.
+
+The photon tracer (``app.photons``) starts these paths beside the lamps' when ``sky.enabled``:
+
+* **The sun** is a parallel beam. Its rays start on the scene's bounding box (a little outside
+  the geometry) and travel along ``-sun_direction``; the box's faces turned to the sun are the
+  beam's cross-section, each counted by its projected area ``A cos``. A photon's flux is the
+  beam's power over its photons, ``E_sun * sum(A cos) / n`` (lux times square metres: lumen, the
+  lamps' photons' unit too: a lamp of ``I`` candela emits ``4 pi I`` lumen). Directional lights
+  of the scene (``Light.kind == "directional"``, intensity in lux) are beams the same way.
+* **The sky** (and the ground outside, below the horizon) lights the box's faces from outside:
+  a photon starts at a uniform point of a face and goes in, cosine-weighted about the face's
+  inward normal, with flux ``pi A L / n`` for the luminance ``L`` (cd/m2) it came from. The
+  box is convex and holds every triangle, so the light reaching it from outside is exactly the
+  sky's: nothing is left out.
+
+**Portals.** Most of a room's bounding box is wall and roof, and a photon that starts in front
+of a wall is wasted on its outside. So the faces are cut into cells (about 64 along the box's
+longest edge) and only the cells that light can cross into the room emit: rays cast from points
+inside the room (the spawn point and points it sees) that escape the geometry mark the cells
+where they leave the box, plus the cells next to those. The windows of a room on the box's
+walls are then the portals, found without being named. A closed room has none (no daylight
+photons, said in the photon map's notes); a scene seen from outside (the spawn outside the
+box) has every cell.
+
+**First hits.** The renderer draws the sun's direct light itself (a directional light, as the
+lamps'), so a sun photon's first hit is not stored, as a lamp's is not. The sky's light through
+the windows has no analytic term that knows where the openings are, so a sky photon's first
+hit is stored (``STORE_SKY_FIRST_HIT``): the gather then shows the sky's direct light on the
+floor by the window and its bounces alike.
+
+**How much light.** ``sun_illuminance_lux`` and ``sky_illuminance_lux`` are the clear-sky
+daylight model of the IES Lighting Handbook (IES RP-21): the direct normal illuminance
+``E_dn = 127.5 klx * exp(-0.21 m)`` with the air mass ``m`` of Kasten and Young (1989), and the
+sky's horizontal illuminance ``E_h = 0.8 klx + 15.5 klx * sqrt(sin h)``. The sky is uniform, of
+luminance ``E_h / pi``, bluish; the ground outside is grey, of reflectance ``GROUND_ALBEDO``,
+lit by both. (The sky engineer's model, when it is merged, can replace ``daylight_for``'s
+figures.)
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.raycast import RayCaster
+from app.settings import SkySettings
+
+#: Rec. 709 luminance weights (as app.photons): a colour's luma is its lux / cd/m2 figure.
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+#: Extraterrestrial illuminance of the sun (IES RP-21), lux.
+SOLAR_LUX = 127_500.0
+#: Optical extinction of a clear sky (IES RP-21).
+CLEAR_EXTINCTION = 0.21
+#: The clear sky's horizontal illuminance, ``A + B sqrt(sin h)`` lux (IES RP-21).
+SKY_A_LUX, SKY_B_LUX = 800.0, 15_500.0
+#: Below the horizon the sky fades to dark at this solar elevation (civil twilight's end).
+TWILIGHT_DEG = -6.0
+#: Reflectance of the ground around the building (grass, paving: about 0.2).
+GROUND_ALBEDO = 0.2
+#: Colours (linear RGB, luma 1): the sky bluish, the ground neutral.
+SKY_RGB = (0.80, 1.00, 1.50)
+GROUND_RGB = (1.0, 1.0, 1.0)
+#: Sky photons' first hits are stored (see the module docstring); sun photons' are not.
+STORE_SKY_FIRST_HIT = True
+#: Portal cells along the bounding box's longest edge.
+PORTAL_CELLS = 64
+#: Points inside the room that probe for openings, and rays cast from each.
+PROBE_POINTS, PROBE_RAYS = 256, 256
+#: The box around the geometry is this fraction of its diagonal larger on every side.
+BOX_MARGIN = 0.01
+
+
+def _unit_luma(rgb) -> np.ndarray:
+    c = np.asarray(rgb, np.float64)
+    return c / float(c @ LUMA)
+
+
+def air_mass(elevation_deg: float) -> float:
+    """Relative optical air mass at a solar elevation (Kasten and Young 1989); inf below -0.5."""
+    h = float(elevation_deg)
+    if h <= -0.5:
+        return math.inf
+    return 1.0 / (math.sin(math.radians(h)) + 0.50572 * (h + 6.07995) ** -1.6364)
+
+
+def sun_illuminance_lux(elevation_deg: float) -> float:
+    """Clear-sky direct normal illuminance of the sun, lux (0 with the sun below the horizon).
+
+    ``127.5 klx * exp(-0.21 m)``, the IES clear-sky model, with the air mass ``m`` of Kasten and
+    Young: about 100 klx at noon in summer, 65 klx at 10 degrees, nothing at the horizon.
+    """
+    if not math.isfinite(elevation_deg) or elevation_deg <= 0.0:
+        return 0.0
+    return SOLAR_LUX * math.exp(-CLEAR_EXTINCTION * air_mass(elevation_deg))
+
+
+def sky_illuminance_lux(elevation_deg: float) -> float:
+    """Horizontal illuminance from a clear sky (without the sun), lux.
+
+    ``0.8 klx + 15.5 klx * sqrt(sin h)`` (IES clear sky) above the horizon; below it, the
+    0.8 klx fade linearly to nothing at ``TWILIGHT_DEG``.
+    """
+    h = float(elevation_deg)
+    if not math.isfinite(h) or h <= TWILIGHT_DEG:
+        return 0.0
+    if h <= 0.0:
+        return SKY_A_LUX * (h - TWILIGHT_DEG) / -TWILIGHT_DEG
+    return SKY_A_LUX + SKY_B_LUX * math.sqrt(math.sin(math.radians(h)))
+
+
+def sun_rgb(elevation_deg: float) -> np.ndarray:
+    """The sun's colour (linear RGB, luma 1): white high up, warmer towards the horizon."""
+    warm = math.exp(-max(float(elevation_deg), 0.0) / 12.0)  # 1 at the horizon, 0.08 at 30 deg
+    return _unit_luma((1.0, 1.0 - 0.25 * warm, 1.0 - 0.6 * warm))
+
+
+@dataclass(frozen=True)
+class Beam:
+    """Parallel light: ``towards`` the source (unit), ``lux`` its RGB normal illuminance."""
+
+    towards: tuple[float, float, float]
+    lux: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Daylight:
+    """What the daylight photons depend on (hashable: it is part of the photon map's key)."""
+
+    beams: tuple[Beam, ...] = ()  # the sun (and directional lights are added at tracing)
+    sky: tuple[float, float, float] = (0.0, 0.0, 0.0)  # sky luminance, cd/m2, linear RGB
+    ground: tuple[float, float, float] = (0.0, 0.0, 0.0)  # ground luminance below the horizon
+
+    @property
+    def dark(self) -> bool:
+        return not self.beams and max(self.sky) <= 0.0 and max(self.ground) <= 0.0
+
+
+def daylight_for(sky: SkySettings | None) -> Daylight | None:
+    """The sun and sky of these settings, None when daylight is off (``sky.enabled``)."""
+    if sky is None or not sky.enabled:
+        return None
+    return _daylight(
+        sky.time, sky.date, float(sky.latitude), float(sky.longitude), float(sky.north_deg)
+    )
+
+
+@functools.lru_cache(maxsize=64)  # the window asks on every timer tick
+def _daylight(time: str, date: str, lat: float, lon: float, north: float) -> Daylight:
+    from app.sky import sun_direction, sun_position  # astral, loaded only with daylight
+
+    where = SkySettings(
+        enabled=True, time=time, date=date, latitude=lat, longitude=lon, north_deg=north
+    )
+    elevation = sun_position(where).elevation_deg
+    e_sun = sun_illuminance_lux(elevation)
+    e_sky = sky_illuminance_lux(elevation)
+    beams: tuple[Beam, ...] = ()
+    if e_sun > 0.0:
+        s = np.asarray(sun_direction(where), np.float64)
+        s = s / np.linalg.norm(s)
+        beams = (Beam(xyz(s), xyz(e_sun * sun_rgb(elevation))),)
+    sky_l = e_sky / math.pi * _unit_luma(SKY_RGB)
+    e_ground = e_sky + e_sun * max(math.sin(math.radians(elevation)), 0.0)
+    ground_l = GROUND_ALBEDO * e_ground / math.pi * _unit_luma(GROUND_RGB)
+    return Daylight(beams, xyz(sky_l), xyz(ground_l))
+
+
+def xyz(v) -> tuple[float, float, float]:
+    a = np.asarray(v, np.float64).reshape(3)
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+# -- portals -----------------------------------------------------------------------------------
+
+
+@dataclass
+class Portal:
+    """The bounding box's face cells that daylight photons start from (all arrays (C, ...))."""
+
+    centre: np.ndarray  # (C, 3) cell centre on the box
+    half_u: np.ndarray  # (C, 3) half the cell's first edge
+    half_v: np.ndarray  # (C, 3) half the cell's second edge
+    normal: np.ndarray  # (C, 3) outward unit normal of the cell's face
+    area: np.ndarray  # (C,) m2
+    cells: int  # cells on the box in all (the portal's share: len(area) / cells)
+    escaped: float  # fraction of the probe rays that left the geometry
+
+    @property
+    def total_area(self) -> float:
+        return float(self.area.sum())
+
+
+def scene_box(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The box around the triangles (T, 3, 3), grown by ``BOX_MARGIN``; None if there are none."""
+    pts = np.asarray(tri, np.float64).reshape(-1, 3)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if len(pts) == 0:
+        return None
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    margin = BOX_MARGIN * max(float(np.linalg.norm(hi - lo)), 1e-3)
+    return lo - margin, hi + margin
+
+
+def _face_grids(lo: np.ndarray, hi: np.ndarray) -> list[tuple[int, int, int, int, int, int]]:
+    """(axis, side, u axis, v axis, cells along u, cells along v) for the six faces."""
+    ext = hi - lo
+    step = float(ext.max()) / PORTAL_CELLS
+    faces = []
+    for k in range(3):
+        a, b = (k + 1) % 3, (k + 2) % 3
+        na = max(1, math.ceil(ext[a] / step - 1e-9))
+        nb = max(1, math.ceil(ext[b] / step - 1e-9))
+        for side in (-1, 1):
+            faces.append((k, side, a, b, na, nb))
+    return faces
+
+
+def find_portal(
+    caster: RayCaster, box: tuple[np.ndarray, np.ndarray], inside: np.ndarray, seed: int
+) -> Portal:
+    """The box's cells that rays from inside the room leave through (see the module docstring).
+
+    ``inside`` is a point in the room (the spawn). Deterministic for a seed.
+    """
+    lo, hi = (np.asarray(b, np.float64) for b in box)
+    faces = _face_grids(lo, hi)
+    marks = [np.zeros((f[4], f[5]), bool) for f in faces]
+    start = np.asarray(inside, np.float64).reshape(3)
+    inside_box = bool(np.isfinite(start).all() and (start > lo).all() and (start < hi).all())
+    escaped = 1.0
+    if inside_box:
+        rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xDA7])
+        d0 = _sphere(rng, PROBE_POINTS - 1)
+        t0, tri0 = caster.cast_triangles(np.broadcast_to(start, d0.shape), d0)
+        t0 = np.where(tri0 >= 0, t0, _box_exit(start[None], d0, lo, hi)[0])
+        frac = rng.uniform(0.1, 0.9, len(d0))
+        points = np.concatenate([start[None], start + d0 * (t0 * frac)[:, None]])
+        o = np.repeat(points, PROBE_RAYS, axis=0)
+        d = _sphere(rng, len(o))
+        _, tri = caster.cast_triangles(o, d)
+        out = tri < 0
+        escaped = float(out.mean()) if len(out) else 1.0
+        t, face = _box_exit(o[out], d[out], lo, hi)
+        p = o[out] + d[out] * t[:, None]
+        for f, (k, side, a, b, na, nb) in enumerate(faces):
+            on = face == 2 * k + (side > 0)
+            if not on.any():
+                continue
+            ia = np.clip(((p[on, a] - lo[a]) / (hi[a] - lo[a]) * na).astype(np.int64), 0, na - 1)
+            ib = np.clip(((p[on, b] - lo[b]) / (hi[b] - lo[b]) * nb).astype(np.int64), 0, nb - 1)
+            marks[f][ia, ib] = True
+        marks = [_dilate(m) for m in marks]
+    else:
+        marks = [np.ones_like(m) for m in marks]  # seen from outside: the whole box lets light in
+    centre, hu, hv, normal, area = [], [], [], [], []
+    for f, (k, side, a, b, na, nb) in enumerate(faces):
+        ia, ib = np.nonzero(marks[f])
+        if len(ia) == 0:
+            continue
+        du, dv = (hi[a] - lo[a]) / na, (hi[b] - lo[b]) / nb
+        c = np.zeros((len(ia), 3))
+        c[:, k] = hi[k] if side > 0 else lo[k]
+        c[:, a] = lo[a] + (ia + 0.5) * du
+        c[:, b] = lo[b] + (ib + 0.5) * dv
+        centre.append(c)
+        u = np.zeros((len(ia), 3))
+        u[:, a] = 0.5 * du
+        hu.append(u)
+        v = np.zeros((len(ia), 3))
+        v[:, b] = 0.5 * dv
+        hv.append(v)
+        n = np.zeros((len(ia), 3))
+        n[:, k] = side
+        normal.append(n)
+        area.append(np.full(len(ia), du * dv))
+    total = sum(m.size for m in marks)
+    if not centre:
+        z = np.zeros((0, 3))
+        return Portal(z, z, z, z, np.zeros(0), total, escaped)
+    return Portal(
+        np.concatenate(centre),
+        np.concatenate(hu),
+        np.concatenate(hv),
+        np.concatenate(normal),
+        np.concatenate(area),
+        total,
+        escaped,
+    )
+
+
+def _sphere(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` uniform unit directions."""
+    u = rng.random((n, 2))
+    z = 1.0 - 2.0 * u[:, 0]
+    r = np.sqrt(np.clip(1.0 - z * z, 0.0, None))
+    phi = 2.0 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _box_exit(
+    o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Distance to where rays from inside the box leave it, and the face: 2 * axis + (side > 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(d > 0, (hi - o) / d, np.where(d < 0, (lo - o) / d, np.inf))
+    axis = np.argmin(t, axis=1)
+    rows = np.arange(len(o))
+    side = d[rows, axis] > 0
+    return np.maximum(t[rows, axis], 0.0), 2 * axis + side
+
+
+def _dilate(m: np.ndarray) -> np.ndarray:
+    """The marked cells and their eight neighbours."""
+    p = np.pad(m, 1)
+    out = np.zeros_like(m)
+    for i in range(3):
+        for j in range(3):
+            out |= p[i : i + m.shape[0], j : j + m.shape[1]]
+    return out
+
+
+# -- emission ----------------------------------------------------------------------------------
+
+
+@dataclass
+class DaylightSources:
+    """The beams and the sky, as photon sources over a portal: one source each, sky last."""
+
+    portal: Portal
+    beam_towards: np.ndarray  # (B, 3)
+    beam_cdf: list[np.ndarray]  # per beam: cumulative projected area over its portal cells
+    beam_cells: list[np.ndarray]  # per beam: the cells facing it
+    beam_power: np.ndarray  # (B, 3) lumen through the portal
+    sky_cdf: np.ndarray  # cumulative area * luma(face luminance) over all cells
+    sky_face_l: np.ndarray  # (C, 3) mean luminance a cell's photons come from
+    sky: np.ndarray  # (3,)
+    ground: np.ndarray  # (3,)
+    power_luma: np.ndarray  # (B + 1,) per source, lumen
+
+    @staticmethod
+    def build(daylight: Daylight, portal: Portal) -> DaylightSources:
+        towards, cdfs, cells, power = [], [], [], []
+        for beam in daylight.beams:
+            s = np.asarray(beam.towards, np.float64)
+            s = s / max(float(np.linalg.norm(s)), 1e-300)
+            cos = portal.normal @ s
+            facing = np.flatnonzero(cos > 1e-6)
+            w = portal.area[facing] * cos[facing]
+            towards.append(s)
+            cells.append(facing)
+            cdfs.append(np.cumsum(w))
+            power.append(np.asarray(beam.lux, np.float64) * float(w.sum()))
+        sky = np.asarray(daylight.sky, np.float64)
+        ground = np.asarray(daylight.ground, np.float64)
+        up = portal.normal[:, 1]  # +1 top face (photons come from the sky), -1 bottom
+        face_l = np.where(
+            (up > 0.5)[:, None], sky, np.where((up < -0.5)[:, None], ground, 0.5 * (sky + ground))
+        )
+        sky_w = portal.area * (face_l @ LUMA)
+        sky_cdf = np.cumsum(sky_w)
+        luma = [float(p @ LUMA) for p in power] + [float(np.pi * sky_w.sum())]
+        return DaylightSources(
+            portal,
+            np.reshape(towards, (-1, 3)),
+            cdfs,
+            cells,
+            np.reshape(power, (-1, 3)),
+            sky_cdf,
+            face_l,
+            sky,
+            ground,
+            np.asarray(luma),
+        )
+
+    @property
+    def n_beams(self) -> int:
+        return len(self.beam_cells)
+
+    def emit(
+        self, src: np.ndarray, per_source: np.ndarray, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Origins, directions and flux of new paths; ``src`` indexes this object's sources
+        (beams, then the sky), ``per_source`` their photon counts."""
+        m = len(src)
+        u = rng.random((m, 5))  # cell, point on the cell (2), direction (2)
+        o = np.zeros((m, 3))
+        d = np.zeros((m, 3))
+        flux = np.zeros((m, 3))
+        p = self.portal
+        for b in range(self.n_beams):
+            sel = src == b
+            if not sel.any():
+                continue
+            cdf = self.beam_cdf[b]
+            k = np.searchsorted(cdf, u[sel, 0] * cdf[-1], side="right")
+            cell = self.beam_cells[b][np.minimum(k, len(cdf) - 1)]
+            o[sel] = self._point(cell, u[sel, 1], u[sel, 2])
+            d[sel] = -self.beam_towards[b]
+            flux[sel] = self.beam_power[b] / per_source[b]
+        sel = src == self.n_beams
+        if sel.any():
+            from app.photons import _cosine_directions
+
+            total = self.sky_cdf[-1]
+            k = np.searchsorted(self.sky_cdf, u[sel, 0] * total, side="right")
+            cell = np.minimum(k, len(self.sky_cdf) - 1)
+            o[sel] = self._point(cell, u[sel, 1], u[sel, 2])
+            d[sel] = _cosine_directions(-p.normal[cell], u[sel, 3], u[sel, 4])
+            came_from_sky = d[sel, 1] < 0.0  # going down: it came from above the horizon
+            radiance = np.where(came_from_sky[:, None], self.sky, self.ground)
+            face = np.maximum(self.sky_face_l[cell] @ LUMA, 1e-300)
+            # pdf of a cell is A_c luma(L_c) / total, of a direction cos / pi: flux per photon.
+            flux[sel] = np.pi * radiance * (total / face)[:, None] / per_source[self.n_beams]
+        return o, d, flux
+
+    def _point(self, cell: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        p = self.portal
+        return (
+            p.centre[cell]
+            + (2.0 * a - 1.0)[:, None] * p.half_u[cell]
+            + (2.0 * b - 1.0)[:, None] * p.half_v[cell]
+        )
