@@ -69,7 +69,15 @@ STORE_SKY_FIRST_HIT = True
 #: Portal cells along the bounding box's longest edge.
 PORTAL_CELLS = 64
 #: Points inside the room that probe for openings, and rays cast from each.
-PROBE_POINTS, PROBE_RAYS = 256, 256
+PROBE_POINTS, PROBE_RAYS = 1024, 64
+#: Rays aimed from the probe points at the openings the first rays found.
+REFINE_RAYS = 1 << 18
+#: Surface points (for the beams' portals) sit this fraction of the box diagonal off the surface.
+SURFACE_OFFSET = 1e-3
+#: A portal cell is picked in proportion to its area, luminance and (probe crossings + this):
+#: busy cells (the middle of a window) get more photons, the grown border and grazing exits a
+#: few, and each photon's flux is divided by the same weight, so the power stays exact.
+CROSSING_FLOOR = 1.0
 #: The box around the geometry is this fraction of its diagonal larger on every side.
 BOX_MARGIN = 0.01
 
@@ -179,19 +187,50 @@ def xyz(v) -> tuple[float, float, float]:
 
 @dataclass
 class Portal:
-    """The bounding box's face cells that daylight photons start from (all arrays (C, ...))."""
+    """The bounding box cut into cells, and which of them let daylight in.
 
+    The arrays hold every cell of the box's six faces; ``open`` marks the sky's portal (the
+    cells that rays from inside leave through) and :meth:`beam_cells` the cells a parallel beam
+    enters the room through. ``surface`` are points on the room's surfaces seen from inside.
+    """
+
+    lo: np.ndarray  # (3,) the box
+    hi: np.ndarray
     centre: np.ndarray  # (C, 3) cell centre on the box
     half_u: np.ndarray  # (C, 3) half the cell's first edge
     half_v: np.ndarray  # (C, 3) half the cell's second edge
     normal: np.ndarray  # (C, 3) outward unit normal of the cell's face
     area: np.ndarray  # (C,) m2
-    cells: int  # cells on the box in all (the portal's share: len(area) / cells)
+    open: np.ndarray  # (C,) bool: the sky's portal
+    crossings: np.ndarray  # (C,) probe rays that left through each cell (sampling weight)
+    surface: np.ndarray  # (S, 3) points just off the room's surfaces, inside
     escaped: float  # fraction of the probe rays that left the geometry
+    inside: bool  # the probe point was inside the box (else every cell is open)
+
+    @property
+    def cells(self) -> int:
+        return int(len(self.area))
 
     @property
     def total_area(self) -> float:
-        return float(self.area.sum())
+        return float(self.area[self.open].sum())
+
+    def beam_cells(self, caster: RayCaster, towards: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cells a beam from ``towards`` enters the room through and how many rays from the
+        room's surfaces towards the source left through each (their neighbours: 0)."""
+        facing = self.normal @ towards > 1e-6
+        if not self.inside:
+            cells = np.flatnonzero(facing)
+            return cells, np.zeros(len(cells))
+        if len(self.surface) == 0:
+            return np.zeros(0, np.int64), np.zeros(0)
+        d = np.ascontiguousarray(np.broadcast_to(towards, self.surface.shape))
+        _, tri = caster.cast_triangles(self.surface, d)
+        out = tri < 0
+        t, face = _box_exit(self.surface[out], d[out], self.lo, self.hi)
+        count = _crossings(self.lo, self.hi, self.surface[out] + d[out] * t[:, None], face)
+        cells = np.flatnonzero(_dilate_all(self.lo, self.hi, count) & facing)
+        return cells, count[cells]
 
 
 def scene_box(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -219,48 +258,80 @@ def _face_grids(lo: np.ndarray, hi: np.ndarray) -> list[tuple[int, int, int, int
     return faces
 
 
+def _crossings(lo: np.ndarray, hi: np.ndarray, p: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """How many of the points ``p`` (on the box, on faces ``face``) lie in each cell, (C,)."""
+    counts = []
+    for k, side, a, b, na, nb in _face_grids(lo, hi):
+        m = np.zeros((na, nb))
+        on = face == 2 * k + (side > 0)
+        if on.any():
+            ia = np.clip(((p[on, a] - lo[a]) / (hi[a] - lo[a]) * na).astype(np.int64), 0, na - 1)
+            ib = np.clip(((p[on, b] - lo[b]) / (hi[b] - lo[b]) * nb).astype(np.int64), 0, nb - 1)
+            np.add.at(m, (ia, ib), 1.0)
+        counts.append(m.reshape(-1))
+    return np.concatenate(counts)
+
+
+def _dilate_all(lo: np.ndarray, hi: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """The cells with a count and their neighbours on the same face, (C,) bool."""
+    out, at = [], 0
+    for *_, na, nb in _face_grids(lo, hi):
+        out.append(_dilate(count[at : at + na * nb].reshape(na, nb) > 0).reshape(-1))
+        at += na * nb
+    return np.concatenate(out)
+
+
 def find_portal(
     caster: RayCaster, box: tuple[np.ndarray, np.ndarray], inside: np.ndarray, seed: int
 ) -> Portal:
-    """The box's cells that rays from inside the room leave through (see the module docstring).
+    """The box's cells and the sky's portal among them (see the module docstring).
 
     ``inside`` is a point in the room (the spawn). Deterministic for a seed.
     """
     lo, hi = (np.asarray(b, np.float64) for b in box)
-    faces = _face_grids(lo, hi)
-    marks = [np.zeros((f[4], f[5]), bool) for f in faces]
     start = np.asarray(inside, np.float64).reshape(3)
     inside_box = bool(np.isfinite(start).all() and (start > lo).all() and (start < hi).all())
     escaped = 1.0
+    surface = np.zeros((0, 3))
+    exits, exit_face = np.zeros((0, 3)), np.zeros(0, np.int64)
     if inside_box:
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xDA7])
         d0 = _sphere(rng, PROBE_POINTS - 1)
         t0, tri0 = caster.cast_triangles(np.broadcast_to(start, d0.shape), d0)
         t0 = np.where(tri0 >= 0, t0, _box_exit(start[None], d0, lo, hi)[0])
-        frac = rng.uniform(0.1, 0.9, len(d0))
+        frac = rng.uniform(0.5, 0.98, len(d0))  # most near the surfaces, where light lands
         points = np.concatenate([start[None], start + d0 * (t0 * frac)[:, None]])
         o = np.repeat(points, PROBE_RAYS, axis=0)
         d = _sphere(rng, len(o))
-        _, tri = caster.cast_triangles(o, d)
-        out = tri < 0
-        escaped = float(out.mean()) if len(out) else 1.0
-        t, face = _box_exit(o[out], d[out], lo, hi)
-        p = o[out] + d[out] * t[:, None]
-        for f, (k, side, a, b, na, nb) in enumerate(faces):
-            on = face == 2 * k + (side > 0)
-            if not on.any():
-                continue
-            ia = np.clip(((p[on, a] - lo[a]) / (hi[a] - lo[a]) * na).astype(np.int64), 0, na - 1)
-            ib = np.clip(((p[on, b] - lo[b]) / (hi[b] - lo[b]) * nb).astype(np.int64), 0, nb - 1)
-            marks[f][ia, ib] = True
-        marks = [_dilate(m) for m in marks]
-    else:
-        marks = [np.ones_like(m) for m in marks]  # seen from outside: the whole box lets light in
+        t, tri = caster.cast_triangles(o, d)
+        hit = tri >= 0
+        pull = np.minimum(SURFACE_OFFSET * float(np.linalg.norm(hi - lo)), 0.5 * t[hit])
+        surface = o[hit] + d[hit] * (t[hit] - pull)[:, None]
+        escaped = float((~hit).mean())
+        te, exit_face = _box_exit(o[~hit], d[~hit], lo, hi)
+        exits = o[~hit] + d[~hit] * te[:, None]
+        if len(exits):
+            # Then aim at the openings found: from every probe point towards the exit points
+            # (jittered by two cells), so a window's cells are found from every angle.
+            o = points[rng.integers(0, len(points), REFINE_RAYS)]
+            step = (hi - lo).max() / PORTAL_CELLS
+            aim = exits[rng.integers(0, len(exits), REFINE_RAYS)]
+            aim = aim + rng.uniform(-2.0, 2.0, (REFINE_RAYS, 3)) * step
+            d = aim - o
+            d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+            _, tri = caster.cast_triangles(o, d)
+            out = tri < 0
+            te, face = _box_exit(o[out], d[out], lo, hi)
+            exits = np.concatenate([exits, o[out] + d[out] * te[:, None]])
+            exit_face = np.concatenate([exit_face, face])
+        crossings = _crossings(lo, hi, exits, exit_face)
+        is_open = _dilate_all(lo, hi, crossings)
+    else:  # seen from outside: the whole box lets light in
+        crossings = np.zeros(sum(f[4] * f[5] for f in _face_grids(lo, hi)))
+        is_open = np.ones(len(crossings), bool)
     centre, hu, hv, normal, area = [], [], [], [], []
-    for f, (k, side, a, b, na, nb) in enumerate(faces):
-        ia, ib = np.nonzero(marks[f])
-        if len(ia) == 0:
-            continue
+    for k, side, a, b, na, nb in _face_grids(lo, hi):
+        ia, ib = (g.reshape(-1) for g in np.meshgrid(np.arange(na), np.arange(nb), indexing="ij"))
         du, dv = (hi[a] - lo[a]) / na, (hi[b] - lo[b]) / nb
         c = np.zeros((len(ia), 3))
         c[:, k] = hi[k] if side > 0 else lo[k]
@@ -277,18 +348,19 @@ def find_portal(
         n[:, k] = side
         normal.append(n)
         area.append(np.full(len(ia), du * dv))
-    total = sum(m.size for m in marks)
-    if not centre:
-        z = np.zeros((0, 3))
-        return Portal(z, z, z, z, np.zeros(0), total, escaped)
     return Portal(
+        lo,
+        hi,
         np.concatenate(centre),
         np.concatenate(hu),
         np.concatenate(hv),
         np.concatenate(normal),
         np.concatenate(area),
-        total,
+        is_open,
+        crossings,
+        surface,
         escaped,
+        inside_box,
     )
 
 
@@ -333,42 +405,52 @@ class DaylightSources:
     portal: Portal
     beam_towards: np.ndarray  # (B, 3)
     beam_cdf: list[np.ndarray]  # per beam: cumulative projected area over its portal cells
-    beam_cells: list[np.ndarray]  # per beam: the cells facing it
+    beam_cells: list[np.ndarray]  # per beam: the cells it enters through
+    beam_q: list[np.ndarray]  # per beam: their sampling weight (crossings + floor)
+    beam_lux: np.ndarray  # (B, 3) normal illuminance
     beam_power: np.ndarray  # (B, 3) lumen through the portal
-    sky_cdf: np.ndarray  # cumulative area * luma(face luminance) over all cells
-    sky_face_l: np.ndarray  # (C, 3) mean luminance a cell's photons come from
+    sky_cells: np.ndarray  # (K,) the sky's portal cells
+    sky_q: np.ndarray  # (K,) their sampling weight (crossings + floor)
+    sky_cdf: np.ndarray  # (K,) cumulative area * luma(face luminance) * weight over them
+    sky_face_l: np.ndarray  # (K, 3) mean luminance a cell's photons come from
     sky: np.ndarray  # (3,)
     ground: np.ndarray  # (3,)
     power_luma: np.ndarray  # (B + 1,) per source, lumen
 
     @staticmethod
-    def build(daylight: Daylight, portal: Portal) -> DaylightSources:
-        towards, cdfs, cells, power = [], [], [], []
+    def build(daylight: Daylight, portal: Portal, caster: RayCaster) -> DaylightSources:
+        towards, cdfs, cells, qs, power = [], [], [], [], []
         for beam in daylight.beams:
             s = np.asarray(beam.towards, np.float64)
             s = s / max(float(np.linalg.norm(s)), 1e-300)
-            cos = portal.normal @ s
-            facing = np.flatnonzero(cos > 1e-6)
-            w = portal.area[facing] * cos[facing]
+            facing, count = portal.beam_cells(caster, s)
+            w = portal.area[facing] * (portal.normal[facing] @ s)
             towards.append(s)
             cells.append(facing)
-            cdfs.append(np.cumsum(w))
+            qs.append(count + CROSSING_FLOOR)
+            cdfs.append(np.cumsum(w * qs[-1]))
             power.append(np.asarray(beam.lux, np.float64) * float(w.sum()))
         sky = np.asarray(daylight.sky, np.float64)
         ground = np.asarray(daylight.ground, np.float64)
-        up = portal.normal[:, 1]  # +1 top face (photons come from the sky), -1 bottom
+        sky_cells = np.flatnonzero(portal.open)
+        up = portal.normal[sky_cells, 1]  # +1 top face (photons come from the sky), -1 bottom
         face_l = np.where(
             (up > 0.5)[:, None], sky, np.where((up < -0.5)[:, None], ground, 0.5 * (sky + ground))
         )
-        sky_w = portal.area * (face_l @ LUMA)
-        sky_cdf = np.cumsum(sky_w)
+        sky_w = portal.area[sky_cells] * (face_l @ LUMA)
+        sky_q = portal.crossings[sky_cells] + CROSSING_FLOOR
+        sky_cdf = np.cumsum(sky_w * sky_q)
         luma = [float(p @ LUMA) for p in power] + [float(np.pi * sky_w.sum())]
         return DaylightSources(
             portal,
             np.reshape(towards, (-1, 3)),
             cdfs,
             cells,
+            qs,
+            np.reshape([beam.lux for beam in daylight.beams], (-1, 3)),
             np.reshape(power, (-1, 3)),
+            sky_cells,
+            sky_q,
             sky_cdf,
             face_l,
             sky,
@@ -396,24 +478,30 @@ class DaylightSources:
             if not sel.any():
                 continue
             cdf = self.beam_cdf[b]
+            if len(cdf) == 0:
+                continue  # the beam finds no way in (its photons: none, see power_luma)
             k = np.searchsorted(cdf, u[sel, 0] * cdf[-1], side="right")
-            cell = self.beam_cells[b][np.minimum(k, len(cdf) - 1)]
+            j = np.minimum(k, len(cdf) - 1)
+            cell = self.beam_cells[b][j]
             o[sel] = self._point(cell, u[sel, 1], u[sel, 2])
             d[sel] = -self.beam_towards[b]
-            flux[sel] = self.beam_power[b] / per_source[b]
+            # A cell is picked with pdf A cos q / W, a point on it uniformly: E W / q per photon.
+            flux[sel] = self.beam_lux[b] * (cdf[-1] / self.beam_q[b][j])[:, None] / per_source[b]
         sel = src == self.n_beams
         if sel.any():
             from app.photons import _cosine_directions
 
             total = self.sky_cdf[-1]
             k = np.searchsorted(self.sky_cdf, u[sel, 0] * total, side="right")
-            cell = np.minimum(k, len(self.sky_cdf) - 1)
+            j = np.minimum(k, len(self.sky_cdf) - 1)
+            cell = self.sky_cells[j]
             o[sel] = self._point(cell, u[sel, 1], u[sel, 2])
             d[sel] = _cosine_directions(-p.normal[cell], u[sel, 3], u[sel, 4])
             came_from_sky = d[sel, 1] < 0.0  # going down: it came from above the horizon
             radiance = np.where(came_from_sky[:, None], self.sky, self.ground)
-            face = np.maximum(self.sky_face_l[cell] @ LUMA, 1e-300)
-            # pdf of a cell is A_c luma(L_c) / total, of a direction cos / pi: flux per photon.
+            face = np.maximum(self.sky_face_l[j] @ LUMA, 1e-300) * self.sky_q[j]
+            # pdf of a cell is A_c luma(L_c) q_c / total, of a direction cos / pi: flux per photon
+            # pi L total / (luma(L_c) q_c).
             flux[sel] = np.pi * radiance * (total / face)[:, None] / per_source[self.n_beams]
         return o, d, flux
 

@@ -154,7 +154,7 @@ def trace_photons(
         shares = per_source[n_lamp:]
         notes.append(
             f"daylight: {int(shares[:-1].sum())} sun photons, {int(shares[-1])} sky photons "
-            f"from {len(day.portal.area)} of {day.portal.cells} window cells "
+            f"from {int(day.portal.open.sum())} of {day.portal.cells} window cells "
             f"({day.portal.total_area:.3g} m2)"
         )
     starved = int(((per_source == 0) & (power > 0)).sum())
@@ -281,10 +281,10 @@ def _daylight_sources(
     if box is None:
         return None
     portal = find_portal(caster, box, np.asarray(scene.spawn.position, np.float64), seed)
-    if len(portal.area) == 0:
+    if not portal.open.any():
         notes.append("daylight: no window or opening found around the spawn point; no daylight")
         return None
-    return DaylightSources.build(day, portal)
+    return DaylightSources.build(day, portal, caster)
 
 
 def _report(progress: Callable[[float], None] | None, fraction: float) -> None:

@@ -92,6 +92,10 @@ def test_closed_room_and_sun_below_the_horizon_get_no_sun_photons():
     closed = trace_photons(_room(window=False), 20_000, seed=1, daylight=_sun_only())
     assert len(closed) == 0
     assert any("no window or opening" in note for note in closed.notes)
+    # The sun behind the room (from -X): it cannot reach the window, so it gets no photons.
+    behind = dp.Daylight((dp.Beam((-SUN[0], SUN[1], SUN[2]), (SUN_LUX,) * 3),), (10.0,) * 3)
+    photons = trace_photons(_room(), 20_000, seed=1, daylight=behind)
+    assert any("daylight: 0 sun photons, 20000 sky photons" in n for n in photons.notes)
     # Midnight in Paris: the sun is down; the sky has faded too, so no daylight at all.
     night = dp.daylight_for(SkySettings(enabled=True, time="00:30"))
     assert night is not None and night.beams == () and night.dark
@@ -122,7 +126,7 @@ def _emitted(daylight: dp.Daylight, count: int, seed: int = 0):
     box = dp.scene_box(caster.tri)
     assert box is not None
     portal = dp.find_portal(caster, box, np.array(scene.spawn.position), seed)
-    sources = dp.DaylightSources.build(daylight, portal)
+    sources = dp.DaylightSources.build(daylight, portal, caster)
     n = np.array([count] * (sources.n_beams + 1))
     src = np.repeat(np.arange(len(n)), n)
     return sources, *sources.emit(src, n, np.random.default_rng(seed)), src
@@ -149,9 +153,9 @@ def test_sun_power_through_the_window_is_illuminance_times_beam_area():
     entering = flux[sun][inside].sum(axis=0)
     expected = SUN_LUX * WINDOW_AREA * SUN[0]
     assert entering == pytest.approx([expected] * 3, rel=0.03)
-    # The portal is the window, not the whole box: a good share of the photons go in.
-    assert inside.mean() > 0.25
-    assert sources.portal.total_area < 0.2 * 2 * (4 * 3 + 4 * 5 + 3 * 5)
+    # The portal is the window, not the whole box: most photons go in (over the whole box,
+    # about 2 m2 x cos of the 27 m2 of box that the sun sees: one in twenty).
+    assert inside.mean() > 0.6
 
 
 def test_sky_power_through_the_window_is_pi_luminance_area():
@@ -160,6 +164,7 @@ def test_sky_power_through_the_window_is_pi_luminance_area():
     day = dp.Daylight((), (lum, lum, lum), (lum, lum, lum))
     _, o, d, flux, src = _emitted(day, 400_000)
     inside = _through_window(o, d) & (d[:, 0] < 0)
+    assert inside.mean() > 0.6
     assert flux[inside].sum(axis=0) == pytest.approx([np.pi * lum * WINDOW_AREA] * 3, rel=0.03)
 
 
@@ -179,7 +184,7 @@ def test_lamps_and_daylight_share_the_photons_by_power():
     photons = trace_photons(_room(lights=[lamp]), 30_000, seed=2, daylight=day)
     note = next(n for n in photons.notes if n.startswith("daylight:"))
     sun = int(note.split()[1])
-    sources, *_ = _emitted(day, 1)
+    sources, *_ = _emitted(day, 1, seed=2)  # the portal the trace of seed 2 finds
     lamp_power = 4 * np.pi * 200.0
     expected = 30_000 * sources.power_luma[0] / (sources.power_luma[0] + lamp_power)
     assert abs(sun - expected) <= 1
