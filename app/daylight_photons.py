@@ -298,9 +298,9 @@ def find_portal(
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xDA7])
         d0 = _sphere(rng, PROBE_POINTS - 1)
         t0, tri0 = caster.cast_triangles(np.broadcast_to(start, d0.shape), d0)
-        t0 = np.where(tri0 >= 0, t0, _box_exit(start[None], d0, lo, hi)[0])
         frac = rng.uniform(0.5, 0.98, len(d0))  # most near the surfaces, where light lands
-        points = np.concatenate([start[None], start + d0 * (t0 * frac)[:, None]])
+        seen = tri0 >= 0  # not out of a window: a point there may be outside
+        points = np.concatenate([start[None], start + d0[seen] * (t0 * frac)[seen, None]])
         o = np.repeat(points, PROBE_RAYS, axis=0)
         d = _sphere(rng, len(o))
         t, tri = caster.cast_triangles(o, d)
