@@ -11,7 +11,7 @@ from app.photon_map import PhotonMap
 from app.photons import trace_photons
 from app.raycast import RayCaster
 from app.scene import Material, Mesh, PointLight, Scene, Viewpoint
-from app.settings import PhotonSettings, SkySettings
+from app.settings import PhotonSettings, Settings, SkySettings
 
 # The room: x in [-2, 2], y in [0, 3], z in [-2.5, 2.5]; a 2 m x 1 m window in the +X wall.
 LO, HI = np.array([-2.0, 0.0, -2.5]), np.array([2.0, 3.0, 2.5])
@@ -213,3 +213,36 @@ def test_service_traces_again_when_the_sun_moves():
     lamps = service.ensure(settings, scene)
     assert lamps is not None and not any(n.startswith("daylight:") for n in lamps.notes)
     assert service.current(settings, scene) is lamps
+
+
+def test_window_traces_daylight_and_again_when_daylight_is_turned_off(qtbot):
+    """The window, indirect light on: ticking Daylight in the Sun and sky tab brings daylight
+    photons (traced in the background), a new time of day new ones, unticking the lamps' only."""
+    from ui.main_window import MainWindow
+
+    settings = Settings()
+    settings.render.overlay = False
+    settings.photons.enabled = "on"
+    settings.photons.photons = 16384
+    lamp = PointLight((0.0, 2.5, 0.0), (1.0, 1.0, 1.0), 50.0, 100.0)
+    w = MainWindow(settings, _room(lights=[lamp]))
+    qtbot.addWidget(w)
+    w.show()
+    qtbot.waitExposed(w)
+
+    def shown(daylight: bool):
+        m = w._photons_shown
+        return m is not None and any(n.startswith("daylight:") for n in m.notes) == daylight
+
+    qtbot.waitUntil(lambda: shown(False), timeout=20000)
+    lamps_only = w._photons_shown
+    w.sky_panel.editors["sky.enabled"].setChecked(True)
+    qtbot.waitUntil(lambda: shown(True), timeout=20000)
+    morning = w._photons_shown
+    assert morning is not None and len(morning) > len(lamps_only)
+    assert w.sky_panel.form.set("sky.time", "11:30")
+    qtbot.waitUntil(lambda: shown(True) and w._photons_shown is not morning, timeout=20000)
+    w.sky_panel.editors["sky.enabled"].setChecked(False)
+    qtbot.waitUntil(lambda: shown(False), timeout=20000)
+    assert w._photons_shown.power.tobytes() == lamps_only.power.tobytes()
+    w.close()
