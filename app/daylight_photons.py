@@ -16,12 +16,24 @@ The photon tracer (``app.photons``) starts these paths beside the lamps' when ``
 
 **Portals.** Most of a room's bounding box is wall and roof, and a photon that starts in front
 of a wall is wasted on its outside. So the faces are cut into cells (about 64 along the box's
-longest edge) and only the cells that light can cross into the room emit: rays cast from points
-inside the room (the spawn point and points it sees) that escape the geometry mark the cells
-where they leave the box, plus the cells next to those. The windows of a room on the box's
-walls are then the portals, found without being named. A closed room has none (no daylight
-photons, said in the photon map's notes); a scene seen from outside (the spawn outside the
-box) has every cell.
+longest edge) and only the cells that light can cross into the room emit:
+
+* the sky's portal: rays cast from points inside the room (the spawn point and points it sees)
+  that escape the geometry mark the cells where they leave the box; more rays aimed from those
+  points at the openings found fill them in; the marked cells' neighbours are added;
+* a beam's portal: rays from points on the room's surfaces (where the probe rays landed) cast
+  towards the sun; those that escape mark where the beam comes in.
+
+A cell is picked in proportion to its area (projected, for a beam), the luminance and the number
+of probe rays that crossed it (plus ``CROSSING_FLOOR``), and its photons' flux is divided by the
+same weight, so the power through the portal stays exact while the middle of a window gets more
+photons than its grown border. The windows of a room are then the portals, found without being
+named. On the synthetic room of the tests (a 2 m2 window) 93% of the sun's and 88% of the sky's
+photons go in; on the bathroom and the white living room of the shared interiors, 70-83% and
+27-40% of the sun's and 76% and 36% of the sky's photons' first hits are seen from the spawn
+point, against 0.5-6% over the whole box, for 85-100% of the power the whole box lets in. A
+closed room has no portal (no daylight photons, said in the photon map's notes); a scene seen
+from outside (the spawn outside the box) has every cell.
 
 **First hits.** The renderer draws the sun's direct light itself (a directional light, as the
 lamps'), so a sun photon's first hit is not stored, as a lamp's is not. The sky's light through
