@@ -3,7 +3,8 @@
 Model only what a scene requires: no photon map is traced unless the scene asks for one
 (``Scene.indirect``) or the user turns it on (``photons.enabled = on``). The map is traced again
 only when what it depends on changes (the scene's geometry and lights, the photon count, the
-seed, the path length); the radius and the gather variant only rebuild the grid on the GPU side,
+seed, the path length, and with daylight on the sun and the sky: a new time of day, date or
+site traces again); the radius and the gather variant only rebuild the grid on the GPU side,
 and the dimmer scales the indirect light in the shader.
 """
 
@@ -15,9 +16,10 @@ import logging
 import time
 from collections.abc import Callable
 
+from app.daylight_photons import Daylight, daylight_for
 from app.photon_map import PhotonMap
 from app.scene import Scene
-from app.settings import PhotonSettings
+from app.settings import PhotonSettings, SkySettings
 
 log = logging.getLogger(__name__)
 
@@ -29,10 +31,14 @@ def wanted(settings: PhotonSettings, scene: Scene | None) -> bool:
     return settings.enabled == "on" or scene.indirect
 
 
-def map_key(settings: PhotonSettings, scene: Scene | None) -> tuple:
+def map_key(
+    settings: PhotonSettings, scene: Scene | None, daylight: Daylight | None = None
+) -> tuple:
     """Everything the traced photons depend on (the scene by identity: scenes are not edited in
-    place; a reload is a new object; the cache holds the scene, so its id is not reused)."""
-    return (id(scene), settings.photons, settings.seed, settings.max_bounces)
+    place; a reload is a new object; the cache holds the scene, so its id is not reused), and
+    the daylight (sun and sky) when ``sky.enabled``."""
+    key: tuple = (id(scene), settings.photons, settings.seed, settings.max_bounces)
+    return key if daylight is None else (*key, daylight)
 
 
 class PhotonService:
@@ -44,9 +50,13 @@ class PhotonService:
     new one starts once the old has stopped), and hands a finished map over. While it runs,
     :attr:`tracing` is true and :attr:`progress` is the fraction done. A failed trace is not
     retried for the same key; :meth:`take_error` returns its message once.
+
+    ``sky`` returns the current ``sky.*`` settings (the host's): with daylight on, the sun and the
+    sky emit photons too (``app.daylight_photons``) and a change of them traces again.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, sky: Callable[[], SkySettings | None] | None = None) -> None:
+        self.sky = sky
         self.key: tuple | None = None
         self.map: PhotonMap | None = None
         self.scene: Scene | None = None  # held so that id(scene) in the key stays unique
@@ -58,11 +68,18 @@ class PhotonService:
         # (future, key, scene, cancel flag, start time) of the trace on the worker thread
         self._job: tuple[concurrent.futures.Future, tuple, Scene, list[bool], float] | None = None
 
+    def daylight(self) -> Daylight | None:
+        """The sun and sky that the photons get now (None: daylight off, or no sky given)."""
+        return daylight_for(self.sky()) if self.sky is not None else None
+
+    def key_for(self, settings: PhotonSettings, scene: Scene | None) -> tuple:
+        return map_key(settings, scene, self.daylight())
+
     def current(self, settings: PhotonSettings, scene: Scene | None) -> PhotonMap | None:
         """The map for these settings if it is already traced (never traces)."""
         if not wanted(settings, scene):
             return None
-        return self.map if self.key == map_key(settings, scene) else None
+        return self.map if self.key == self.key_for(settings, scene) else None
 
     def ensure(
         self,
@@ -75,10 +92,12 @@ class PhotonService:
         if not wanted(settings, scene):
             return None
         assert scene is not None
-        key = map_key(settings, scene)
+        daylight = self.daylight()
+        key = map_key(settings, scene, daylight)
         if self.key != key:
             start = time.perf_counter()
-            photons = trace(settings, scene, progress, cancel)
+            extra = {} if daylight is None else {"daylight": daylight}
+            photons = trace(settings, scene, progress, cancel, **extra)
             self.store(key, scene, photons)
             self.trace_ms = (time.perf_counter() - start) * 1e3
         return self.map
@@ -95,7 +114,7 @@ class PhotonService:
 
     def failed(self, settings: PhotonSettings, scene: Scene | None) -> bool:
         """Whether tracing for these settings and scene failed (and is not retried)."""
-        return scene is not None and self.failed_key == map_key(settings, scene)
+        return scene is not None and self.failed_key == self.key_for(settings, scene)
 
     def take_error(self) -> str | None:
         """The message of a trace that failed since the last call, once."""
@@ -111,7 +130,7 @@ class PhotonService:
         if self._job is not None:
             future, key, traced_scene, cancel, started = self._job
             if not future.done():
-                if not wanted(settings, scene) or key != map_key(settings, scene):
+                if not wanted(settings, scene) or key != self.key_for(settings, scene):
                     cancel[0] = True  # settings moved on: stop, then trace the new one
                 return self.current(settings, scene)
             self._job = None
@@ -145,11 +164,13 @@ class PhotonService:
         def progress(fraction: float) -> None:
             self.progress = fraction  # read by the host's poll; a float store is atomic
 
-        # A copy: the settings may change while the worker reads them.
+        # A copy: the settings may change while the worker reads them (a Daylight is frozen).
+        daylight = self.daylight()
+        extra = {} if daylight is None else {"daylight": daylight}
         future = self._executor.submit(
-            trace, copy.copy(settings), scene, progress, lambda: cancel[0]
+            trace, copy.copy(settings), scene, progress, lambda: cancel[0], **extra
         )
-        self._job = (future, map_key(settings, scene), scene, cancel, time.monotonic())
+        self._job = (future, map_key(settings, scene, daylight), scene, cancel, time.monotonic())
 
     def close(self) -> None:
         """Cancel a running trace and let the worker thread go (without waiting for it)."""
@@ -165,6 +186,7 @@ def trace(
     scene: Scene,
     progress: Callable[[float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    daylight: Daylight | None = None,
 ) -> PhotonMap:
     from app.photons import trace_photons  # embree is loaded only when photons are wanted
 
@@ -176,6 +198,7 @@ def trace(
         max_bounces=settings.max_bounces,
         progress=progress,
         cancel=cancel,
+        daylight=daylight,
     )
     log.info(
         "traced %d photon paths in %s: %d photons stored, %.0f ms",

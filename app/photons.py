@@ -1,6 +1,6 @@
 """Photon tracing (Jensen style): light paths from the scene's lights, stored at diffuse hits.
 
-Two kinds of light emit photons:
+These kinds of light emit photons (shared out by their luminous power, largest remainder):
 
 * **Point lights**, isotropically, with flux ``4 pi I color / n`` per photon. The renderer's
   direct light is not physical (``E = I color window(d) / (d^2 + 1) cos``), so at a photon's
@@ -16,6 +16,10 @@ Two kinds of light emit photons:
   normals do not say (missing, or nearly perpendicular to the triangle), it emits from a side
   picked at random for each photon. The renderer has no analytic light from emissive surfaces, so
   every hit of these paths is stored, the first included.
+* **Daylight** (``daylight=``, from ``sky.*``) and the scene's directional lights: the sun as a
+  parallel beam and the sky through the openings that ``app.daylight_photons`` finds (lux over
+  the beam's area: lumen, like the lamps' ``4 pi I``). A sun photon's first hit is not stored
+  (the renderer draws the sun's direct light), a sky photon's is.
 
 At each hit the surface is treated as Lambertian with reflectance ``rho = base_color.rgb *
 (1 - metallic)``, times the mean linear colour of its texture and the mean of its vertex colours
@@ -39,6 +43,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.color import SRGB8_TO_LINEAR, srgb_to_linear
+from app.daylight_photons import (
+    STORE_SKY_FIRST_HIT,
+    Beam,
+    Daylight,
+    DaylightSources,
+    find_portal,
+    scene_box,
+    xyz,
+)
 from app.photon_map import PhotonMap, encode_directions
 from app.raycast import RayCaster
 from app.scene import Material, Scene
@@ -75,8 +88,13 @@ def trace_photons(
     progress: Callable[[float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     caster: RayCaster | None = None,
+    daylight: Daylight | None = None,
 ) -> PhotonMap:
     """Trace ``count`` photon paths from the scene's lights and return the stored photons.
+
+    With ``daylight`` (``app.daylight_photons.daylight_for(settings.sky)``) the sun and the sky
+    shine in through the scene's openings too, and the scene's directional lights with them;
+    the photons are shared between all sources by their power.
 
     ``max_bounces`` is the number of diffuse reflections a path may make (so at most
     ``max_bounces + 1`` hits). ``progress(fraction)`` is called after every batched bounce;
@@ -99,6 +117,17 @@ def trace_photons(
         caster = RayCaster(tris, owner)
     geo = _Geometry.build(scene, caster, owner[finite], vnormal[finite], notes)
     sources = _light_sources(scene, geo, notes)
+    day = _daylight_sources(scene, geo, caster, daylight, seed, notes)
+    n_lamp = 0 if sources is None else len(sources.power_luma)
+    power = np.concatenate(
+        [np.zeros(0) if sources is None else sources.power_luma]
+        + ([] if day is None else [day.power_luma])
+    )
+    if sources is None and day is not None:
+        notes.remove("no light in the scene emits: empty photon map")
+    if day is not None and not power.sum() > 0.0:
+        notes.append("no light in the scene emits: empty photon map")
+        day = None
 
     out_pos: list[np.ndarray] = [np.zeros((0, 3), np.float32)]
     out_pow: list[np.ndarray] = [np.zeros((0, 3), np.float32)]
@@ -115,13 +144,20 @@ def trace_photons(
             notes,
         )
 
-    if sources is None or count == 0:
-        return done(0 if sources is None else count)
+    if (sources is None and day is None) or count == 0:
+        return done(0 if sources is None and day is None else count)
     if geo.tri.shape[0] == 0:
         notes.append("the scene has no geometry: every photon escapes")
 
-    per_source = _allocate(sources.power_luma, count)
-    starved = int(((per_source == 0) & (sources.power_luma > 0)).sum())
+    per_source = _allocate(power, count)
+    if day is not None:
+        shares = per_source[n_lamp:]
+        notes.append(
+            f"daylight: {int(shares[:-1].sum())} sun photons, {int(shares[-1])} sky photons "
+            f"from {int(day.portal.open.sum())} of {day.portal.cells} window cells "
+            f"({day.portal.total_area:.3g} m2)"
+        )
+    starved = int(((per_source == 0) & (power > 0)).sum())
     if starved:
         notes.append(f"{starved} light(s) too dim for a photon out of {count}; their light lost")
     bounds = np.concatenate([[0], np.cumsum(per_source)])
@@ -129,8 +165,11 @@ def trace_photons(
     for b in range(batches):
         start, stop = b * CHUNK, min(count, (b + 1) * CHUNK)
         src = np.searchsorted(bounds, np.arange(start, stop), side="right") - 1
-        o, d, flux, reach = sources.emit(src, per_source, rng, geo)
-        is_point = src < sources.n_point  # only their first hits are windowed and not stored
+        o, d, flux, reach = _emit(sources, day, n_lamp, src, per_source, rng, geo)
+        is_point = src < (0 if sources is None else sources.n_point)  # windowed first hits
+        # The renderer draws the lamps' and the sun's direct light: their first hits not stored.
+        is_beam = (src >= n_lamp) & (src < n_lamp + (0 if day is None else day.n_beams))
+        sky_first = (src >= n_lamp) & ~is_beam
         for bounce in range(max_bounces + 1):
             if cancel is not None and cancel():
                 raise TracingCancelled("photon tracing cancelled")
@@ -145,7 +184,7 @@ def trace_photons(
                     x = d2 / np.where(is_point, reach * reach, 1.0)
                     factor = np.clip(1.0 - x * x, 0.0, 1.0) ** 2 * d2 / (d2 + 1.0)
                 flux = np.where(is_point[:, None], flux * factor[:, None], flux)
-                store = ~is_point
+                store = ~(is_point | is_beam | (sky_first & (not STORE_SKY_FIRST_HIT)))
             else:
                 store = np.ones(len(o), bool)
             ok = np.isfinite(flux).all(axis=1) & (flux.max(axis=1, initial=0.0) > 0.0)
@@ -179,6 +218,73 @@ def trace_photons(
             o, d, flux = o[survive], d[survive], flux[survive]
             _report(progress, (b + (bounce + 1) / (max_bounces + 1)) / batches)
     return done(count)
+
+
+def _emit(
+    sources: _Sources | None,
+    day: DaylightSources | None,
+    n_lamp: int,
+    src: np.ndarray,
+    per_source: np.ndarray,
+    rng: np.random.Generator,
+    geo: _Geometry,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """New paths of a batch (``src`` sorted): the lamps' first, then daylight's, in that order
+    (a scene without daylight draws exactly the random numbers it drew before daylight)."""
+    lamp = src < n_lamp
+    parts = []
+    if lamp.any():
+        assert sources is not None
+        parts.append(sources.emit(src[lamp], per_source[:n_lamp], rng, geo))
+    if (~lamp).any():
+        assert day is not None
+        o, d, flux = day.emit(src[~lamp] - n_lamp, per_source[n_lamp:], rng)
+        parts.append((o, d, flux, np.full(len(o), np.inf)))
+    if len(parts) == 1:
+        return parts[0]
+    o, d, flux, reach = (np.concatenate(a) for a in zip(*parts, strict=True))
+    return o, d, flux, reach
+
+
+def _daylight_sources(
+    scene: Scene,
+    geo: _Geometry,
+    caster: RayCaster,
+    daylight: Daylight | None,
+    seed: int,
+    notes: list[str],
+) -> DaylightSources | None:
+    """The sun, the sky and the scene's directional lights through the scene's openings."""
+    beams = [] if daylight is None else list(daylight.beams)
+    for light in scene.lights:
+        if light.kind != "directional":
+            continue
+        to = -np.asarray(light.direction, np.float64).reshape(-1)[:3]
+        rgb = np.clip(np.asarray(light.color, np.float64).reshape(-1)[:3], 0.0, None)
+        rgb = rgb * float(light.intensity)
+        norm = float(np.linalg.norm(to)) if to.size == 3 else 0.0
+        if not (np.isfinite(to).all() and norm > 0 and np.isfinite(rgb).all()):
+            notes.append("a directional light with a non-finite direction or colour, skipped")
+            continue
+        if float(rgb @ LUMA) > 0.0:
+            beams.append(Beam(xyz(to / norm), xyz(rgb)))
+    if daylight is None and not beams:
+        return None
+    day = (
+        Daylight(tuple(beams))
+        if daylight is None
+        else Daylight(tuple(beams), daylight.sky, daylight.ground)
+    )
+    if day.dark:
+        return None
+    box = scene_box(geo.tri)
+    if box is None:
+        return None
+    portal = find_portal(caster, box, np.asarray(scene.spawn.position, np.float64), seed)
+    if not portal.open.any():
+        notes.append("daylight: no window or opening found around the spawn point; no daylight")
+        return None
+    return DaylightSources.build(day, portal, caster)
 
 
 def _report(progress: Callable[[float], None] | None, fraction: float) -> None:
@@ -401,6 +507,8 @@ class _Sources:
 def _light_sources(scene: Scene, geo: _Geometry, notes: list[str]) -> _Sources | None:
     pos, flux, reach = [], [], []
     for i, light in enumerate(scene.lights):
+        if light.kind == "directional":
+            continue  # a parallel beam through the openings (app.daylight_photons)
         p = np.asarray(light.position, np.float64).reshape(-1)[:3]
         c = np.asarray(light.color, np.float64).reshape(-1)[:3]
         inten, rng_m = float(light.intensity), float(light.range_m)

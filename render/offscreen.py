@@ -32,7 +32,7 @@ class OffscreenHost:
         self.width = max(2, int(width) // 2 * 2)
         self.height = max(1, int(height))
         self.settings = settings or Settings()
-        self.photon_cache = PhotonService()
+        self.photon_cache = PhotonService(sky=lambda: self.settings.sky)
         self.trace_progress = trace_progress
         self.scene: Scene | None = None
         self.ctx = create_headless()

@@ -96,7 +96,7 @@ class MainWindow(QMainWindow):
         self._loading: _Loading | None = None
         self.normal_mode = False
         # Photon maps are traced on the service's worker thread; the view keeps rendering meanwhile.
-        self.photon_cache = PhotonService()
+        self.photon_cache = PhotonService(sky=lambda: self.settings.sky)
         self._photons_shown: object = None
         self._photon_timer = QTimer(self)
         self._photon_timer.timeout.connect(self._check_photons)

@@ -1,0 +1,253 @@
+"""Daylight in the photon map: the sun and the sky shine in through a room's window."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app import daylight_photons as dp
+from app.indirect import PhotonService
+from app.photon_map import PhotonMap
+from app.photons import trace_photons
+from app.raycast import RayCaster
+from app.scene import Material, Mesh, PointLight, Scene, Viewpoint
+from app.settings import PhotonSettings, Settings, SkySettings
+
+# The room: x in [-2, 2], y in [0, 3], z in [-2.5, 2.5]; a 2 m x 1 m window in the +X wall.
+LO, HI = np.array([-2.0, 0.0, -2.5]), np.array([2.0, 3.0, 2.5])
+WINDOW_Y, WINDOW_Z = (1.0, 2.0), (-1.0, 1.0)
+WINDOW_AREA = (WINDOW_Y[1] - WINDOW_Y[0]) * (WINDOW_Z[1] - WINDOW_Z[0])
+#: Towards the sun: in through the window (from +X) and down onto the floor, never the ceiling.
+SUN = np.array([1.0, 0.8, 0.2]) / np.linalg.norm([1.0, 0.8, 0.2])
+SUN_LUX = 50_000.0
+
+
+def _quad(name: str, corners, normal, material: int) -> Mesh:
+    idx = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+    c = np.asarray(corners, np.float32)
+    if np.cross(c[1] - c[0], c[2] - c[0]) @ np.asarray(normal) < 0:
+        idx = idx[:, ::-1].copy()
+    n = np.tile(np.asarray(normal, np.float32), (4, 1))
+    return Mesh(name, c, n, np.zeros((4, 2), np.float32), idx, material)
+
+
+def _rect_x(x: float, y0: float, y1: float, z0: float, z1: float, material: int) -> Mesh:
+    c = [(x, y0, z0), (x, y0, z1), (x, y1, z1), (x, y1, z0)]
+    return _quad("east wall", c, (-1.0, 0.0, 0.0), material)
+
+
+def _room(window: bool = True, floor=(0.8, 0.45, 0.15), lights=()) -> Scene:
+    """Walls and ceiling white, the floor ``floor``; an opening in the +X wall if ``window``."""
+    (x0, y0, z0), (x1, y1, z1) = LO, HI
+    meshes = [
+        _quad("floor", [(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)], (0, 1, 0), 1),
+        _quad("ceiling", [(x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)], (0, -1, 0), 0),
+        _quad("west", [(x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)], (1, 0, 0), 0),
+        _quad("north", [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)], (0, 0, 1), 0),
+        _quad("south", [(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)], (0, 0, -1), 0),
+    ]
+    if window:
+        (wy0, wy1), (wz0, wz1) = WINDOW_Y, WINDOW_Z
+        meshes += [
+            _rect_x(x1, y0, wy0, z0, z1, 0),  # below the window
+            _rect_x(x1, wy1, y1, z0, z1, 0),  # above it
+            _rect_x(x1, wy0, wy1, z0, wz0, 0),  # beside it
+            _rect_x(x1, wy0, wy1, wz1, z1, 0),
+        ]
+    else:
+        meshes.append(_rect_x(x1, y0, y1, z0, z1, 0))
+    mats = [Material("white", (0.8, 0.8, 0.8, 1.0)), Material("floor", (*floor, 1.0))]
+    scene = Scene("window room", meshes, mats, lights=list(lights))
+    scene.spawn = Viewpoint((0.0, 1.6, 0.0))
+    return scene
+
+
+def _sun_only(lux: float = SUN_LUX) -> dp.Daylight:
+    return dp.Daylight((dp.Beam(tuple(SUN), (lux, lux, lux)),))
+
+
+def _near(photons: PhotonMap, y: float, tol: float = 0.05) -> np.ndarray:
+    """Summed RGB power of the photons stored within ``tol`` of the plane at height ``y``."""
+    on = np.abs(photons.positions[:, 1] - y) < tol
+    return photons.power[on].astype(np.float64).sum(axis=0)
+
+
+def test_sun_through_a_window_lights_the_ceiling_warm_by_the_floor():
+    """Only the sun, only through the window: the ceiling, which the sun does not reach, gets
+    bounce light, and it is warm because the floor the sun lands on is."""
+    photons = trace_photons(_room(), 60_000, seed=3, daylight=_sun_only())
+    ceiling = _near(photons, HI[1])
+    west = photons.power[np.abs(photons.positions[:, 0] - LO[0]) < 0.05].sum(axis=0)
+    for bounce in (ceiling, west):  # neither is in the sun's way (it lands on the floor)
+        r, g, b = bounce
+        assert b > 0.0 and r > 1.2 * g > 1.2 * b  # warm, like the floor (0.8, 0.45, 0.15)
+    # The ceiling gets a plausible share of the beam through the window (50 klx x 2 m2 x cos):
+    # the floor reflects about half of it, the white walls pass most of that on.
+    entering = SUN_LUX * WINDOW_AREA * SUN[0]
+    assert 0.2 < ceiling @ dp.LUMA / entering < 0.7
+    # A grey floor gives a neutral bounce.
+    grey = _near(trace_photons(_room(floor=(0.5, 0.5, 0.5)), 60_000, 3, daylight=_sun_only()), 3.0)
+    assert grey.max() / grey.min() < 1.1
+    # The sun's first hits (the patch on the floor) are not stored: the renderer draws them.
+    patch = photons.positions[:, 1] < 0.05
+    assert photons.positions[patch].shape[0] < 0.5 * len(photons)
+
+
+def test_closed_room_and_sun_below_the_horizon_get_no_sun_photons():
+    closed = trace_photons(_room(window=False), 20_000, seed=1, daylight=_sun_only())
+    assert len(closed) == 0
+    assert any("no window or opening" in note for note in closed.notes)
+    # The sun behind the room (from -X): it cannot reach the window, so it gets no photons.
+    behind = dp.Daylight((dp.Beam((-SUN[0], SUN[1], SUN[2]), (SUN_LUX,) * 3),), (10.0,) * 3)
+    photons = trace_photons(_room(), 20_000, seed=1, daylight=behind)
+    assert any("daylight: 0 sun photons, 20000 sky photons" in n for n in photons.notes)
+    # Midnight in Paris: the sun is down; the sky has faded too, so no daylight at all.
+    night = dp.daylight_for(SkySettings(enabled=True, time="00:30"))
+    assert night is not None and night.beams == () and night.dark
+    assert dp.sun_illuminance_lux(-5.0) == 0.0 and dp.sun_illuminance_lux(0.0) == 0.0
+    # Dusk: the sun just set, a little sky light left (sky photons only).
+    dusk = dp.Daylight((), (30.0, 30.0, 30.0), (0.0, 0.0, 0.0))
+    photons = trace_photons(_room(), 20_000, seed=1, daylight=dusk)
+    assert len(photons) > 0
+    assert any("daylight: 0 sun photons, 20000 sky photons" in n for n in photons.notes)
+
+
+def test_same_seed_same_photons():
+    sky = dp.daylight_for(SkySettings(enabled=True, time="15:00", north_deg=90.0))
+    assert sky is not None and sky.beams
+    a = trace_photons(_room(), 20_000, seed=5, daylight=sky)
+    b = trace_photons(_room(), 20_000, seed=5, daylight=sky)
+    assert len(a) > 0 and a.notes == b.notes
+    assert a.positions.tobytes() == b.positions.tobytes()
+    assert a.power.tobytes() == b.power.tobytes()
+    c = trace_photons(_room(), 20_000, seed=6, daylight=sky)
+    assert a.positions.tobytes() != c.positions.tobytes()
+
+
+def _emitted(daylight: dp.Daylight, count: int, seed: int = 0):
+    """The daylight paths a trace would start in the window room: origins, directions, flux."""
+    scene = _room()
+    caster = RayCaster(scene.triangles())
+    box = dp.scene_box(caster.tri)
+    assert box is not None
+    portal = dp.find_portal(caster, box, np.array(scene.spawn.position), seed)
+    sources = dp.DaylightSources.build(daylight, portal, caster)
+    n = np.array([count] * (sources.n_beams + 1))
+    src = np.repeat(np.arange(len(n)), n)
+    return sources, *sources.emit(src, n, np.random.default_rng(seed)), src
+
+
+def _through_window(o: np.ndarray, d: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (HI[0] - o[:, 0]) / d[:, 0]
+    p = o + d * t[:, None]
+    return (
+        (t > 0)
+        & (p[:, 1] > WINDOW_Y[0])
+        & (p[:, 1] < WINDOW_Y[1])
+        & (p[:, 2] > WINDOW_Z[0])
+        & (p[:, 2] < WINDOW_Z[1])
+    )
+
+
+def test_sun_power_through_the_window_is_illuminance_times_beam_area():
+    """The sun photons that pass the window carry E * A_window * cos, the beam that enters."""
+    sources, o, d, flux, src = _emitted(_sun_only(), 200_000)
+    sun = src == 0
+    inside = _through_window(o[sun], d[sun])
+    entering = flux[sun][inside].sum(axis=0)
+    expected = SUN_LUX * WINDOW_AREA * SUN[0]
+    assert entering == pytest.approx([expected] * 3, rel=0.03)
+    # The portal is the window, not the whole box: most photons go in (over the whole box,
+    # about 2 m2 x cos of the 27 m2 of box that the sun sees: one in twenty).
+    assert inside.mean() > 0.6
+
+
+def test_sky_power_through_the_window_is_pi_luminance_area():
+    """A uniform sky (and ground of the same luminance) of L sends pi L A through a window."""
+    lum = 1_000.0
+    day = dp.Daylight((), (lum, lum, lum), (lum, lum, lum))
+    _, o, d, flux, src = _emitted(day, 400_000)
+    inside = _through_window(o, d) & (d[:, 0] < 0)
+    assert inside.mean() > 0.6
+    assert flux[inside].sum(axis=0) == pytest.approx([np.pi * lum * WINDOW_AREA] * 3, rel=0.03)
+
+
+def test_clear_sky_figures():
+    """The IES clear-sky daylight: about 100 klx of sun at a high noon, 10-20 klx of sky."""
+    assert 95_000 < dp.sun_illuminance_lux(60.0) < 105_000
+    assert dp.sun_illuminance_lux(10.0) < dp.sun_illuminance_lux(30.0)
+    assert 14_000 < dp.sky_illuminance_lux(60.0) < 16_000
+    assert dp.sky_illuminance_lux(-10.0) == 0.0 < dp.sky_illuminance_lux(-3.0)
+    low, high = dp.sun_rgb(3.0), dp.sun_rgb(60.0)
+    assert low[2] < high[2] <= high[0]  # the low sun is warmer
+
+
+def test_lamps_and_daylight_share_the_photons_by_power():
+    lamp = PointLight((0.0, 2.5, 0.0), (1.0, 1.0, 1.0), 200.0, 100.0)
+    day = _sun_only()
+    photons = trace_photons(_room(lights=[lamp]), 30_000, seed=2, daylight=day)
+    note = next(n for n in photons.notes if n.startswith("daylight:"))
+    sun = int(note.split()[1])
+    sources, *_ = _emitted(day, 1, seed=2)  # the portal the trace of seed 2 finds
+    lamp_power = 4 * np.pi * 200.0
+    expected = 30_000 * sources.power_luma[0] / (sources.power_luma[0] + lamp_power)
+    assert abs(sun - expected) <= 1
+    # A directional light of the scene is a beam through the window like the sun.
+    sunlamp = PointLight((0, 0, 0), (1, 1, 1), SUN_LUX, kind="directional", direction=tuple(-SUN))
+    a = trace_photons(_room(lights=[sunlamp]), 20_000, seed=4)
+    b = trace_photons(_room(), 20_000, seed=4, daylight=_sun_only())
+    assert a.power.tobytes() == b.power.tobytes() and len(a) > 0
+
+
+def test_service_traces_again_when_the_sun_moves():
+    """With indirect light on and daylight on, a new time of day is a new photon map; daylight
+    off gives the lamps-only map back."""
+    sky = SkySettings(enabled=True, time="09:00", north_deg=-90.0)
+    service = PhotonService(sky=lambda: sky)
+    settings = PhotonSettings(enabled="on", photons=8192)
+    scene = _room(lights=[PointLight((0.0, 2.5, 0.0), (1.0, 1.0, 1.0), 50.0, 100.0)])
+    morning = service.ensure(settings, scene)
+    assert morning is not None and any(n.startswith("daylight:") for n in morning.notes)
+    assert service.ensure(settings, scene) is morning
+    sky.time = "11:00"
+    later = service.ensure(settings, scene)
+    assert later is not None and later is not morning
+    assert later.power.tobytes() != morning.power.tobytes()
+    sky.enabled = False
+    lamps = service.ensure(settings, scene)
+    assert lamps is not None and not any(n.startswith("daylight:") for n in lamps.notes)
+    assert service.current(settings, scene) is lamps
+
+
+def test_window_traces_daylight_and_again_when_daylight_is_turned_off(qtbot):
+    """The window, indirect light on: ticking Daylight in the Sun and sky tab brings daylight
+    photons (traced in the background), a new time of day new ones, unticking the lamps' only."""
+    from ui.main_window import MainWindow
+
+    settings = Settings()
+    settings.render.overlay = False
+    settings.photons.enabled = "on"
+    settings.photons.photons = 16384
+    lamp = PointLight((0.0, 2.5, 0.0), (1.0, 1.0, 1.0), 50.0, 100.0)
+    w = MainWindow(settings, _room(lights=[lamp]))
+    qtbot.addWidget(w)
+    w.show()
+    qtbot.waitExposed(w)
+
+    def shown(daylight: bool):
+        m = w._photons_shown
+        return m is not None and any(n.startswith("daylight:") for n in m.notes) == daylight
+
+    qtbot.waitUntil(lambda: shown(False), timeout=20000)
+    lamps_only = w._photons_shown
+    w.sky_panel.editors["sky.enabled"].setChecked(True)
+    qtbot.waitUntil(lambda: shown(True), timeout=20000)
+    morning = w._photons_shown
+    assert morning is not None and len(morning) > len(lamps_only)
+    assert w.sky_panel.form.set("sky.time", "11:30")
+    qtbot.waitUntil(lambda: shown(True) and w._photons_shown is not morning, timeout=20000)
+    w.sky_panel.editors["sky.enabled"].setChecked(False)
+    qtbot.waitUntil(lambda: shown(False), timeout=20000)
+    assert w._photons_shown.power.tobytes() == lamps_only.power.tobytes()
+    w.close()
