@@ -1,0 +1,128 @@
+"""Exposure for the present pass: fixed in EV100, or metered from the lit frame.
+
+``ExposurePass`` (automatic exposure only) reduces each eye's HDR colour to a 64 x 36 grid of
+mean log2 luminance in a fragment shader (on llvmpipe cheaper than a compute reduction) and
+starts an asynchronous copy of it into a pixel buffer; the next frame reads that buffer (the
+copy finished long before) and meters it (``app.exposure.metered_ev``), so the readback never
+waits for the frame being drawn. ``Exposure`` holds the eye's adaptation and gives each frame
+its exposure factor, its EV and the readout. The units and formulas are in ``app.exposure``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from app.exposure import (
+    EyeAdaptation,
+    displayed_brightness,
+    effective_ev,
+    exposure_scale,
+    metered_ev,
+    readout,
+)
+from app.settings import RenderSettings
+from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
+from render.shaders import ShaderLibrary
+
+METER_CELLS = (64, 36)  # per eye: 16:9 cells, about 10 x 20 pixels each at 640 x 720
+
+
+class ExposurePass(RenderPass):
+    """Automatic exposure's meter: both eyes' log-luminance grids, read back a frame later."""
+
+    name = "exposure_meter"
+    reads = ("hdr",)
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
+        w, h = METER_CELLS
+        self.grid = ctx.texture((2 * w, h), 1, dtype="f4")
+        self.grid.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.fbo = ctx.framebuffer([self.grid])
+        self.pbo = ctx.buffer(reserve=2 * w * h * 4)
+        self._pending = False  # the buffer holds a grid not read yet
+
+    def configure(self, settings, scene, frame) -> bool:
+        return settings.render.exposure_mode == "auto"
+
+    def take(self) -> np.ndarray | None:
+        """The grid the last metering frame copied, (36, 128) log2 cd/m2; None when none is
+        waiting (the first frame, or automatic exposure was off)."""
+        if not self._pending:
+            return None
+        self._pending = False
+        w, h = METER_CELLS
+        return np.frombuffer(self.pbo.read(), np.float32).reshape(h, 2 * w)
+
+    def forget(self) -> None:
+        """Drop a waiting grid (the scene changed: it metered another room)."""
+        self._pending = False
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        prog = self.shaders.program("fullscreen.vert.glsl", "exposure_meter.frag.glsl")
+        w, h = METER_CELLS
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        self.fbo.use()
+        for index, tgt in enumerate(res.targets[:2]):
+            origin = (index * w, 0)
+            self.fbo.viewport = (*origin, w, h)
+            bind_texture(prog, "eye_color", tgt.color)
+            set_uniforms(prog, {"u_origin": origin, "u_cells": (w, h)})
+            self.fullscreen(prog)
+        self.fbo.viewport = (0, 0, 2 * w, h)
+        # Into the pixel buffer without waiting; take() reads it during the next frame.
+        self.grid.read_into(self.pbo)
+        self._pending = True
+
+    def release(self) -> None:
+        super().release()
+        for obj in (self.fbo, self.grid, self.pbo):
+            obj.release()
+
+
+class Exposure:
+    """The frame's exposure: the fixed EV or the adapted automatic one, with the Brightness."""
+
+    def __init__(self) -> None:
+        self.adaptation = EyeAdaptation()
+        self.base_ev = 0.0  # the metered (adapted) or fixed EV of the last frame
+        self.mode = "manual"
+
+    def reset(self) -> None:
+        """A new scene: the next metering is taken at once."""
+        self.adaptation.reset()
+
+    def step(self, r: RenderSettings, grid: np.ndarray | None, dt: float) -> float:
+        """Advance by one frame of ``dt`` seconds; the factor on the linear picture."""
+        self.mode = r.exposure_mode
+        if r.exposure_mode == "auto":
+            ev = self.adaptation.update(
+                metered_ev(grid) if grid is not None else None, dt, r.adaptation_s
+            )
+            # Not metered yet (the first frame): start from the fixed exposure.
+            self.base_ev = ev if ev is not None else r.exposure_ev
+        else:
+            self.adaptation.reset()  # back to automatic: meter afresh
+            self.base_ev = r.exposure_ev
+        return self.scale(r)
+
+    def scale(self, r: RenderSettings) -> float:
+        """1 / L_max at the effective EV: the Brightness is exposure compensation."""
+        b = float(r.brightness)
+        if not math.isfinite(b) or b <= 0.0:
+            return 0.0
+        return exposure_scale(self.base_ev) * b  # the renderer adds the hidden factor
+
+    def ev(self, r: RenderSettings) -> float:
+        """The EV the picture is shown at (what the readout says)."""
+        return effective_ev(self.base_ev, r.brightness)
+
+    def displayed_brightness(self, r: RenderSettings) -> float:
+        """TCR's light term input: the Brightness times the exposure against the default."""
+        return displayed_brightness(r.brightness * r.exposure, self.base_ev)
+
+    def readout(self, r: RenderSettings) -> str:
+        return readout(self.ev(r), self.mode)
