@@ -20,7 +20,10 @@ two-thirds of a change in that time, 95% in three times that).
 ``render.brightness`` is the one brightness control a designer sees: it multiplies what the
 screen shows in either mode (exposure compensation; 50% is one EV darker). The lamps stay
 as the model gives them. TCR's light term l reads the displayed brightness (see
-:func:`displayed_brightness`): the brightness times the exposure relative to the default one.
+:func:`displayed_brightness`): how bright the picture shows the room against 18% grey, so
+it reads the Brightness alone once automatic exposure has adapted (a dark room brightened
+by the exposure does not coarsen the textures, a sunlit one neither), and reads less while
+the eye adapts or where a fixed exposure shows the room dark.
 
 The default EV (:data:`EV_DEFAULT`, -1.3) shows the built-in scenes as before exposure had
 units: Stephen Hill's ACES fit at EV -1.3 is within 1 of 255 levels of Narkowicz's fit at the
@@ -113,19 +116,29 @@ def effective_ev(base_ev: float, brightness: float) -> float:
     return float(base_ev) - compensation_ev(brightness)
 
 
-def displayed_brightness(brightness: float, base_ev: float) -> float:
-    """What TCR's light term l reads: the displayed brightness relative to the default
-    exposure, ``brightness * 2^(EV_DEFAULT - base_ev)``.
+def displayed_brightness(
+    brightness: float, shown_ev: float, scene_ev: float | None = None
+) -> float:
+    """What TCR's light term l reads: how bright the picture shows the room, 1 when its
+    average is at 18% grey, ``brightness * 2^(scene_ev - shown_ev)``.
 
-    At the default EV it is ``render.brightness`` itself; automatic exposure brightening a
-    dark room by 2 EV makes it 4x. A NaN EV gives NaN (l's fallback: keep quality)."""
+    ``scene_ev`` is the EV the meter found for the room in the last frame, ``shown_ev`` the
+    one the picture is shown at: the same once automatic exposure has adapted, so l then
+    reads the Brightness alone; while the eye adapts to a darker room, or where a fixed
+    exposure shows the room dark, it reads less. Without a metering (None) the room is
+    taken as the built-in scenes are at the default EV. A NaN or infinite EV gives NaN
+    (l's fallback: keep quality).
+    """
     b = float(brightness)
-    ev = float(base_ev)
-    if not math.isfinite(ev):
+    seen = EV_DEFAULT if scene_ev is None else float(scene_ev)
+    ev = float(shown_ev)
+    if not (math.isfinite(ev) and math.isfinite(seen)) or math.isnan(b):
         return math.nan
-    if not math.isfinite(b) or b <= 0.0:
-        return max(b, 0.0) if not math.isnan(b) else math.nan
-    return b * 2.0 ** max(-1000.0, min(1000.0, EV_DEFAULT - ev))
+    if b <= 0.0:
+        return 0.0
+    if math.isinf(b):
+        return b
+    return b * 2.0 ** max(-1000.0, min(1000.0, seen - ev))
 
 
 def readout(ev: float, mode: str) -> str:

@@ -12,7 +12,7 @@ import numpy as np
 
 from app.camera import StereoCamera
 from app.cps import side_caps
-from app.exposure import displayed_brightness
+from app.exposure import EV_DEFAULT, displayed_brightness
 from app.frame import FrameInput
 from app.gaze import GazeModel
 from app.navigation import Walker
@@ -44,12 +44,13 @@ class Session:
         self.eye_size = (640, 720)  # the eye viewport (pixels) the gaze ray is cast for
         self.edge: list = []  # CPS: app.cps.SideCaps per eye, from the last tick
         self._frame = -2  # last path frame applied (-2: none)
-        # The EV the host's renderer metered for its last frame (automatic exposure; hosts set
-        # it after each frame). None, or a fixed exposure: the settings' EV.
-        self.metered_ev: float | None = None
+        # How bright the host's renderer showed the room in its last frame (its
+        # displayed_brightness(); hosts set it after each frame). None: from the settings.
+        self.shown_brightness: float | None = None
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
         """Switch scenes; everything indexed by the old scene's meshes is forgotten first."""
+        self.shown_brightness = None  # measured in the old room
         self.gazed = None
         self.levels = None
         self.edge = []
@@ -137,13 +138,15 @@ class Session:
             ]
 
     def displayed_brightness(self) -> float:
-        """What TCR's light term l reads: the Brightness times the exposure against the
-        default (``app.exposure.displayed_brightness``), so l follows what the viewer sees
-        when automatic exposure brightens a dark room."""
+        """What TCR's light term l reads: how bright the picture shows the room
+        (``app.exposure.displayed_brightness``), as the host's renderer measured it; without
+        a measurement, the Brightness at the exposure against the default one (automatic:
+        as adapted, so the Brightness alone)."""
+        if self.shown_brightness is not None:
+            return self.shown_brightness
         r = self.settings.render
-        auto = r.exposure_mode == "auto" and self.metered_ev is not None
-        ev = self.metered_ev if auto and self.metered_ev is not None else r.exposure_ev
-        return displayed_brightness(r.brightness * r.exposure, ev)
+        shown = EV_DEFAULT if r.exposure_mode == "auto" else r.exposure_ev
+        return displayed_brightness(r.brightness * r.exposure, shown)
 
     def edge_caps(self) -> list:
         """CPS side caps per eye from the edge rays; [] when CPS and its views are off. The

@@ -1,7 +1,8 @@
 """Exposure for the present pass: fixed in EV100, or metered from the lit frame.
 
-``ExposurePass`` (automatic exposure only) reduces each eye's HDR colour to a 64 x 36 grid of
-mean log2 luminance in a fragment shader (on llvmpipe cheaper than a compute reduction) and
+``ExposurePass`` (for automatic exposure and TCR's light term) reduces each eye's HDR colour
+to a 64 x 36 grid of mean log2 luminance in a fragment shader (on llvmpipe cheaper than a
+compute reduction) and
 starts an asynchronous copy of it into a pixel buffer; the next frame reads that buffer (the
 copy finished long before) and meters it (``app.exposure.metered_ev``), so the readback never
 waits for the frame being drawn. ``Exposure`` holds the eye's adaptation and gives each frame
@@ -24,6 +25,7 @@ from app.exposure import (
     readout,
 )
 from app.settings import RenderSettings
+from app.tcr import terms_from_settings
 from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
 from render.shaders import ShaderLibrary
 
@@ -46,7 +48,11 @@ class ExposurePass(RenderPass):
         self._pending = False  # the buffer holds a grid not read yet
 
     def configure(self, settings, scene, frame) -> bool:
-        return settings.render.exposure_mode == "auto"
+        # Automatic exposure needs it, and so does TCR's light term (how bright the picture
+        # shows the room); otherwise nothing reads it.
+        tcr = settings.tcr
+        light_term = tcr.enabled and terms_from_settings(tcr).l
+        return settings.render.exposure_mode == "auto" or light_term
 
     def take(self) -> np.ndarray | None:
         """The grid the last metering frame copied, (36, 128) log2 cd/m2; None when none is
@@ -84,45 +90,56 @@ class ExposurePass(RenderPass):
 
 
 class Exposure:
-    """The frame's exposure: the fixed EV or the adapted automatic one, with the Brightness."""
+    """The frame's exposure: the fixed EV or the adapted automatic one, with the Brightness;
+    and the eye's adapted metering of the room, which TCR's light term reads."""
 
     def __init__(self) -> None:
-        self.adaptation = EyeAdaptation()
-        self.base_ev = 0.0  # the metered (adapted) or fixed EV of the last frame
+        self.adaptation = EyeAdaptation()  # the eye, adapted to the metered room
+        self.base_ev = 0.0  # the EV the last frame was shown at, before the Brightness
         self.mode = "manual"
+
+    @property
+    def scene_ev(self) -> float | None:
+        """The EV the last metering found for the room (None: not metered); the eye is
+        still adapting towards it when it differs from the automatic ``base_ev``."""
+        return self.adaptation.target
 
     def reset(self) -> None:
         """A new scene: the next metering is taken at once."""
         self.adaptation.reset()
 
-    def step(self, r: RenderSettings, grid: np.ndarray | None, dt: float) -> float:
-        """Advance by one frame of ``dt`` seconds; the factor on the linear picture."""
+    def step(
+        self, r: RenderSettings, grid: np.ndarray | None, dt: float, metering: bool = True
+    ) -> float:
+        """Advance by one frame of ``dt`` seconds with the last metering ``grid`` (None:
+        none arrived); ``metering``: whether the meter runs (else the eye forgets the
+        room). The factor on the linear picture."""
         self.mode = r.exposure_mode
-        if r.exposure_mode == "auto":
-            ev = self.adaptation.update(
-                metered_ev(grid) if grid is not None else None, dt, r.adaptation_s
-            )
-            # Not metered yet (the first frame): start from the fixed exposure.
-            self.base_ev = ev if ev is not None else r.exposure_ev
-        else:
-            self.adaptation.reset()  # back to automatic: meter afresh
+        if not metering:
+            self.adaptation.reset()
+        measured = metered_ev(grid) if grid is not None else None
+        ev = self.adaptation.update(measured, dt, r.adaptation_s)
+        if r.exposure_mode == "auto" and ev is not None:
+            self.base_ev = ev
+        else:  # fixed, or not metered yet (the first frame starts from the fixed EV)
             self.base_ev = r.exposure_ev
         return self.scale(r)
 
     def scale(self, r: RenderSettings) -> float:
-        """1 / L_max at the effective EV: the Brightness is exposure compensation."""
+        """1 / L_max times the Brightness (exposure compensation); without the hidden
+        ``render.exposure`` factor, which the renderer adds."""
         b = float(r.brightness)
         if not math.isfinite(b) or b <= 0.0:
             return 0.0
-        return exposure_scale(self.base_ev) * b  # the renderer adds the hidden factor
+        return exposure_scale(self.base_ev) * b
 
     def ev(self, r: RenderSettings) -> float:
         """The EV the picture is shown at (what the readout says)."""
-        return effective_ev(self.base_ev, r.brightness)
+        return effective_ev(self.base_ev, r.brightness * r.exposure)
 
     def displayed_brightness(self, r: RenderSettings) -> float:
-        """TCR's light term input: the Brightness times the exposure against the default."""
-        return displayed_brightness(r.brightness * r.exposure, self.base_ev)
+        """TCR's light term input (``app.exposure.displayed_brightness``)."""
+        return displayed_brightness(r.brightness * r.exposure, self.base_ev, self.scene_ev)
 
     def readout(self, r: RenderSettings) -> str:
         return readout(self.ev(r), self.mode)

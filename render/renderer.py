@@ -16,12 +16,12 @@ import moderngl
 import numpy as np
 
 from app.frame import FrameInput
+from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.scene import Scene
 from app.settings import Settings
 from app.tcr import finest_per_texture
 from render.ab_split import ABSplitPass, SplitFrame
-from app.paths import FIXED_DT
 from render.constants import CPS_LEVELS
 from render.cps import (
     CpsFilterPass,
@@ -126,7 +126,7 @@ class Renderer:
         # seconds (the headless hosts' fixed step; the window may set its own).
         self.exposure = Exposure()
         self.frame_dt = FIXED_DT
-        self._exposure_scale = self.exposure.step(settings.render, None, 0.0)
+        self._exposure_scale = self.exposure.step(settings.render, None, 0.0, False)
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -214,15 +214,19 @@ class Renderer:
     def step_exposure(self) -> None:
         """This frame's exposure: the fixed EV, or the last metering adapted by frame_dt."""
         meter = self._by_name.get("exposure_meter")
+        metering = isinstance(meter, ExposurePass) and meter.enabled
         grid = meter.take() if isinstance(meter, ExposurePass) else None
-        self._exposure_scale = self.exposure.step(self.settings.render, grid, self.frame_dt)
+        self._exposure_scale = self.exposure.step(
+            self.settings.render, grid, self.frame_dt, metering
+        )
 
     def exposure_readout(self) -> str:
         """``"Exposure EV 7.2 (auto)"``: the EV the last frame was shown at."""
         return self.exposure.readout(self.settings.render)
 
     def displayed_brightness(self) -> float:
-        """What TCR's light term reads (``app.exposure.displayed_brightness``)."""
+        """What TCR's light term reads (``app.exposure.displayed_brightness``): the hosts
+        hand it to the session after each frame."""
         return self.exposure.displayed_brightness(self.settings.render)
 
     def configure(self, ctx: FrameContext) -> list[RenderPass]:

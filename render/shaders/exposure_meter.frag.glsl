@@ -21,7 +21,8 @@ void main() {
         for (int i = 0; i < SAMPLES; ++i) {
             vec2 at = (vec2(cell) + (vec2(i, j) + 0.5) / float(SAMPLES)) * span;
             ivec2 p = clamp(ivec2(at), ivec2(0), size - 1);
-            float y = dot(max(texelFetch(u_eye_color, p, 0).rgb, 0.0), LUMA);
+            // min(): an overflowed half float (inf) meters as the largest finite one.
+            float y = min(dot(max(texelFetch(u_eye_color, p, 0).rgb, 0.0), LUMA), 65504.0);
             sum += log2(max(y, 5.96e-8));  // the smallest half float: black is finite
         }
     }

@@ -2,7 +2,8 @@
 // Presentation of one eye into its half of the side-by-side view: exposure, tone curve
 // (exposure_tonemap.glsl: ACES, AgX or a clamp) and sRGB encoding. u_exposure is 1 / L_max,
 // L_max = 1.2 * 2^EV100 cd/m2 the luminance shown as white (app/exposure.py), times the
-// Brightness. The lighting output is already finite (storable), so no checks are repeated.
+// Brightness. The lighting output is finite (storable); an emissive surface brighter than a
+// half float holds (inf) is clamped to the largest one, so the tone curves never see inf/inf.
 #include "exposure_tonemap.glsl"
 
 uniform sampler2D u_eye_color;
@@ -32,7 +33,7 @@ vec3 srgb_encode(vec3 c) {
 
 void main() {
     ivec2 q = ivec2(gl_FragCoord.xy) - u_origin;
-    vec3 hdr = texelFetch(u_eye_color, q, 0).rgb;
+    vec3 hdr = min(texelFetch(u_eye_color, q, 0).rgb, vec3(65504.0));
     vec3 c = srgb_encode(tone_map(hdr * u_exposure));
 #ifdef VISUALIZE
     int s = int(texelFetch(u_levels, q >> 1, 0).r);
