@@ -8,8 +8,9 @@ photographic convention (Lagarde and de Rousiers, "Moving Frostbite to PBR", 201
 
 maps to white before the tone curve, so the picture is ``L / L_max`` and one EV more halves
 it. Manual exposure sets EV100 (``render.exposure_ev``); automatic exposure meters the frame:
-the geometric mean L_avg of the luminance with the darkest and brightest few per cent left
-out is placed at 18% grey,
+the geometric mean L_avg of the luminance of the model's surfaces (the void around it, where
+nothing is drawn, is not metered) with the darkest and brightest few per cent left out is
+placed at 18% grey,
 
     EV100 = log2(L_avg / (1.2 * 0.18)),
 
@@ -42,6 +43,8 @@ EV_DEFAULT = -1.3  # the built-in scenes look as they did at the old exposure 1 
 EV_MIN, EV_MAX = -10.0, 20.0  # automatic exposure stays inside (starlight .. sunlit snow)
 METER_GREY = 0.18  # automatic exposure puts the frame's average here before the tone curve
 TRIM_DARK, TRIM_BRIGHT = 0.05, 0.05  # the fractions of the meter's samples left out
+ADAPTED_EV = 1e-3  # the eye counts as adapted this close to the metering (TCR's l is exact)
+NO_SURFACE = -1000.0  # a meter cell where nothing is drawn (the shader writes it)
 LOG2_FLOOR = -24.0  # log2 of the luminance the meter takes for black (the shader's floor)
 
 
@@ -68,11 +71,12 @@ def metered_ev(log2_luminance: np.ndarray) -> float | None:
 
     ``log2_luminance`` are the meter's samples (log2 cd/m2); the darkest :data:`TRIM_DARK`
     and brightest :data:`TRIM_BRIGHT` of them are left out (a lamp's hot spot, a black
-    corner). Non-finite samples are dropped; none left: None (nothing to meter). The result
-    is clamped to [EV_MIN, EV_MAX].
+    corner). Non-finite samples and cells with no surface (:data:`NO_SURFACE`: the void
+    around a model) are dropped; none left: None (nothing to meter). The result is clamped
+    to [EV_MIN, EV_MAX].
     """
     x = np.asarray(log2_luminance, np.float64).ravel()
-    x = np.sort(x[np.isfinite(x)])
+    x = np.sort(x[np.isfinite(x) & (x > NO_SURFACE)])
     if x.size == 0:
         return None
     lo = int(math.floor(x.size * TRIM_DARK))
@@ -108,6 +112,8 @@ class EyeAdaptation:
             self.ev = self.target
         else:
             self.ev = self.target + (self.ev - self.target) * math.exp(-step / tau)
+            if abs(self.ev - self.target) < ADAPTED_EV:  # adapted: exactly, not asymptotically
+                self.ev = self.target
         return self.ev
 
 

@@ -1,7 +1,8 @@
 """Exposure for the present pass: fixed in EV100, or metered from the lit frame.
 
 ``ExposurePass`` (for automatic exposure and TCR's light term) reduces each eye's HDR colour
-to a 64 x 36 grid of mean log2 luminance in a fragment shader (on llvmpipe cheaper than a
+to a 64 x 36 grid of mean log2 luminance of its surfaces (the void around a model, where
+nothing is drawn, is left out) in a fragment shader (on llvmpipe cheaper than a
 compute reduction) and
 starts an asynchronous copy of it into a pixel buffer; the next frame reads that buffer (the
 copy finished long before) and meters it (``app.exposure.metered_ev``), so the readback never
@@ -36,7 +37,7 @@ class ExposurePass(RenderPass):
     """Automatic exposure's meter: both eyes' log-luminance grids, read back a frame later."""
 
     name = "exposure_meter"
-    reads = ("hdr",)
+    reads = ("hdr", "depth")
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
@@ -76,6 +77,7 @@ class ExposurePass(RenderPass):
             origin = (index * w, 0)
             self.fbo.viewport = (*origin, w, h)
             bind_texture(prog, "eye_color", tgt.color)
+            bind_texture(prog, "gb_depth", tgt.depth)
             set_uniforms(prog, {"u_origin": origin, "u_cells": (w, h)})
             self.fullscreen(prog)
         self.fbo.viewport = (0, 0, 2 * w, h)

@@ -18,6 +18,7 @@ from app.exposure import (
     EV_DEFAULT,
     EV_MAX,
     EV_MIN,
+    NO_SURFACE,
     EyeAdaptation,
     displayed_brightness,
     exposure_scale,
@@ -194,6 +195,8 @@ def test_the_meter_leaves_out_hot_spots_and_black_corners():
     spots[40:80] = -24.0  # a black corner
     assert metered_ev(spots) == pytest.approx(metered_ev(lum))
     assert metered_ev(np.array([np.nan, np.inf])) is None
+    assert metered_ev(np.full(10, NO_SURFACE)) is None  # nothing drawn: nothing to meter
+    assert metered_ev(np.r_[lum, np.full(5000, NO_SURFACE)]) == metered_ev(lum)
     assert metered_ev(np.full(10, -24.0)) == EV_MIN
     assert metered_ev(np.full(10, 60.0)) == EV_MAX
 
@@ -229,6 +232,21 @@ def test_auto_exposure_shows_a_dim_and_a_100x_brighter_room_alike_gradually(host
     progress = (evs[15] - dim_ev) / (bright_ev - dim_ev)
     assert 1 - math.exp(-14 / 15) - 0.02 < progress < 1 - math.exp(-1.0) + 0.02, progress
     assert host.renderer.exposure_readout() == f"Exposure EV {evs[-1]:.1f} (auto)"
+
+
+def test_a_model_in_the_void_is_metered_on_its_surfaces_alone(host):
+    glow = Scene(
+        "lamp",
+        [quad("lamp", (0, 1.6, -2), 0.8)],
+        [Material("m", (0, 0, 0, 1), emissive=(10.0, 10.0, 10.0))],
+        [],
+        [],
+    ).sanitized()
+    for _ in range(3):
+        img = show(host, glow, render__exposure_mode="auto", render__ambient=0.0)
+        glow = None  # the first call sets the scene
+    assert host.renderer.exposure.base_ev == pytest.approx(math.log2(10.0 / (1.2 * 0.18)))
+    assert 60 < centre(img).mean() < 140  # the lamp at grey, not blown out by the void
 
 
 def test_black_blinding_and_1x1_frames_stay_finite(host):
