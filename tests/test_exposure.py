@@ -317,3 +317,37 @@ def test_tcr_light_term_follows_the_exposure(host):
     assert len(set(terms)) > 3
     # Fixed exposure: the bright room shows bright (the metering is a frame late).
     assert [light_term(render__ambient=4.0) for _ in range(2)][-1] == 0
+
+
+# -- the window --------------------------------------------------------------------------------
+
+
+def test_the_evaluation_bar_reads_the_exposure(qtbot):
+    from tests.test_render import checker_scene
+    from ui.main_window import MainWindow
+
+    settings = Settings()
+    window = MainWindow(settings, checker_scene())
+    qtbot.addWidget(window)
+    window.resize(1366, 768)
+    window.show()
+    qtbot.waitExposed(window)
+    label = window.eval_bar.labels["exposure"]
+    window.eval_bar.refresh()
+    assert label.text() == "Exposure EV -1.3 (fixed)"
+    assert "EV" in label.toolTip() and "automatic" in label.toolTip()
+    mode = window.panel.editors["render.exposure_mode"]
+    mode.setCurrentIndex(mode.findData("auto"))
+    window.panel.editors["render.brightness"].setValue(50)  # one EV of compensation
+
+    def metered() -> bool:
+        window.eval_bar.refresh()
+        return label.text().endswith("(auto)") and label.text() != "Exposure EV -0.3 (auto)"
+
+    qtbot.waitUntil(metered, timeout=5000)
+    # The quad metered on its own (3 EV brighter than the default), one EV darker for 50%.
+    ev = window.view.renderer.exposure.base_ev + 1.0
+    assert label.text() == f"Exposure EV {ev:.1f} (auto)" and ev > 1.0
+    window.tcr_panel.poll()
+    assert window.tcr_panel.brightness.text().startswith("50%")  # l reads the Brightness
+    window.close()
