@@ -45,6 +45,7 @@ METER_GREY = 0.18  # automatic exposure puts the frame's average here before the
 TRIM_DARK, TRIM_BRIGHT = 0.05, 0.05  # the fractions of the meter's samples left out
 ADAPTED_EV = 1e-3  # the eye counts as adapted this close to the metering (TCR's l is exact)
 NO_SURFACE = -1000.0  # a meter cell where nothing is drawn (the shader writes it)
+UNSEEN_EV = 0.1  # TCR's l takes the room as shown at the exposure when this close (7%)
 LOG2_FLOOR = -24.0  # log2 of the luminance the meter takes for black (the shader's floor)
 
 
@@ -132,14 +133,17 @@ def displayed_brightness(
     one the picture is shown at: the same once automatic exposure has adapted, so l then
     reads the Brightness alone; while the eye adapts to a darker room, or where a fixed
     exposure shows the room dark, it reads less. Without a metering (None) the room is
-    taken as the built-in scenes are at the default EV. A NaN or infinite EV gives NaN
-    (l's fallback: keep quality).
+    taken as the built-in scenes are at the default EV. Differences under
+    :data:`UNSEEN_EV` count as none (a frame's textures change the metering a little). A NaN
+    or infinite EV gives NaN (l's fallback: keep quality).
     """
     b = float(brightness)
     seen = EV_DEFAULT if scene_ev is None else float(scene_ev)
     ev = float(shown_ev)
     if not (math.isfinite(ev) and math.isfinite(seen)) or math.isnan(b):
         return math.nan
+    if abs(seen - ev) < UNSEEN_EV:  # the meter's noise: the level must not flicker with it
+        seen = ev
     if b <= 0.0:
         return 0.0
     if math.isinf(b):

@@ -225,9 +225,13 @@ class Renderer:
         return self.exposure.readout(self.settings.render)
 
     def displayed_brightness(self) -> float:
-        """What TCR's light term reads (``app.exposure.displayed_brightness``): the hosts
-        hand it to the session after each frame."""
+        """What TCR's light term reads (``app.exposure.displayed_brightness``)."""
         return self.exposure.displayed_brightness(self.settings.render)
+
+    def exposure_state(self) -> tuple[float, float | None]:
+        """The last frame's EV before the Brightness and the room's metered EV (None: not
+        metered), for the session's TCR light term (``Session.exposure_state``)."""
+        return self.exposure.base_ev, self.exposure.scene_ev
 
     def configure(self, ctx: FrameContext) -> list[RenderPass]:
         """Ask every pass whether it runs (its own rule) and check the enabled list's reads

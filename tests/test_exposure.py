@@ -280,6 +280,7 @@ def test_black_blinding_and_1x1_frames_stay_finite(host):
 def test_displayed_brightness_is_the_brightness_once_adapted():
     assert displayed_brightness(1.0, EV_DEFAULT) == 1.0  # no metering: as the built-in scenes
     assert displayed_brightness(0.5, 3.0, 3.0) == 0.5  # adapted: the Brightness alone
+    assert displayed_brightness(0.5, 3.0, 3.05) == 0.5  # the meter's noise: still exactly l=1
     assert displayed_brightness(1.0, 3.0, 1.0) == pytest.approx(0.25)  # shown 2 EV too dark
     assert math.isnan(displayed_brightness(1.0, math.nan, 0.0))
     assert displayed_brightness(0.0, 0.0, 0.0) == 0.0
@@ -296,7 +297,8 @@ def test_tcr_light_term_follows_the_exposure(host):
 
     def light_term(**kw) -> int:
         show(host, None, tcr__enabled=True, render__adaptation_s=0.25, **kw)
-        session.shown_brightness = host.renderer.displayed_brightness()
+        session.exposure_state = host.renderer.exposure_state()
+        assert session.displayed_brightness() == host.renderer.displayed_brightness()
         session.tick(FIXED_DT)
         reason = session.reason(0)
         assert reason is not None

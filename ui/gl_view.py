@@ -133,7 +133,7 @@ class StereoView(QOpenGLWidget):
             self.presenter.render(self.renderer, frame, fbo, layout.gl_origin)
         else:
             self.renderer.render(frame, fbo, layout.gl_origin)
-        self.session.shown_brightness = self.renderer.displayed_brightness()  # TCR's l reads it
+        self.session.exposure_state = self.renderer.exposure_state()  # TCR's l reads it
         self.timer.tick(now)
         self.frame_log.record(now, self.renderer.pass_ms())
 
