@@ -12,6 +12,7 @@ import numpy as np
 
 from app.camera import StereoCamera
 from app.cps import side_caps
+from app.exposure import EV_DEFAULT, displayed_brightness
 from app.frame import FrameInput
 from app.gaze import GazeModel
 from app.navigation import Walker
@@ -43,9 +44,14 @@ class Session:
         self.eye_size = (640, 720)  # the eye viewport (pixels) the gaze ray is cast for
         self.edge: list = []  # CPS: app.cps.SideCaps per eye, from the last tick
         self._frame = -2  # last path frame applied (-2: none)
+        # The host renderer's exposure in its last frame (hosts set it after each frame):
+        # (the EV shown at before the Brightness, the EV the meter found for the room or
+        # None). None: not known, from the settings alone.
+        self.exposure_state: tuple[float, float | None] | None = None
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
         """Switch scenes; everything indexed by the old scene's meshes is forgotten first."""
+        self.exposure_state = None  # measured in the old room
         self.gazed = None
         self.levels = None
         self.edge = []
@@ -127,10 +133,24 @@ class Session:
                     self.gazed,
                     m.viewpoint_moving,
                     m.gaze_fixed,
-                    self.settings.render.brightness,
+                    self.displayed_brightness(),
                     t,
                 )
             ]
+
+    def displayed_brightness(self) -> float:
+        """What TCR's light term l reads: how bright the picture shows the room
+        (``app.exposure.displayed_brightness``), with the host renderer's last exposure
+        (:attr:`exposure_state`) and the settings now (a Brightness just changed counts at
+        once). Without a host's exposure: the Brightness at the exposure against the default
+        one (automatic: as adapted, so the Brightness alone)."""
+        r = self.settings.render
+        brightness = r.brightness * r.exposure
+        auto = r.exposure_mode == "auto"
+        if self.exposure_state is None:
+            return displayed_brightness(brightness, EV_DEFAULT if auto else r.exposure_ev)
+        shown, scene_ev = self.exposure_state
+        return displayed_brightness(brightness, shown if auto else r.exposure_ev, scene_ev)
 
     def edge_caps(self) -> list:
         """CPS side caps per eye from the edge rays; [] when CPS and its views are off. The

@@ -271,14 +271,62 @@ class RenderSettings:
             "compute": "Compute shader (the CPS paper's)",
         },
     )
-    # The one brightness the panels show is ``brightness`` (it dims the lights, so TCR's
-    # light term follows it); ``exposure`` stays for the command line and presets, and is
-    # the place for a later exposure in EV with its tone mapper.
+    # Light is in cd/m2; the picture shows it through an exposure (app/exposure.py: L_max =
+    # 1.2 * 2^EV100 cd/m2 is white before the tone curve), fixed in EV or metered from the
+    # frame. ``brightness`` is the one brightness control: exposure compensation in either
+    # mode (TCR's light term reads it times the exposure against the default one).
+    # ``exposure`` stays for old command lines and presets: a further factor, hidden.
+    exposure_mode: str = _opt(
+        "manual",
+        "Automatic adjusts the picture to the room's light as the eye does, over the eye "
+        "adaptation time; fixed shows every room at the same exposure value.",
+        label="Exposure",
+        choices=("auto", "manual"),
+        choice_labels={
+            "auto": "Automatic, adapts like the eye",
+            "manual": "Fixed exposure value",
+        },
+    )
+    exposure_ev: float = _opt(
+        -1.3,
+        "With a fixed exposure: the exposure value of a camera at ISO 100; one more shows "
+        "the room half as bright. At 0 a surface of 1.2 cd/m² shows as white, at 10 one "
+        "of 1,229 cd/m².",
+        label="Fixed exposure value",
+        unit="EV",
+        lo=-10.0,
+        hi=20.0,
+        decimals=1,
+        step=0.5,
+    )
+    adaptation_s: float = _opt(
+        1.0,
+        "With automatic exposure: how quickly the picture follows a change of light, such "
+        "as walking from a dim hall into a sunlit room (0: at once).",
+        label="Eye adaptation time",
+        unit="s",
+        lo=0.0,
+        hi=30.0,
+        decimals=1,
+        step=0.5,
+    )
+    tone_mapping: str = _opt(
+        "aces",
+        "How light brighter than the screen can show is rolled off into white: a film-like "
+        "curve keeps a sunlit floor and a lamp's glow from turning into flat white patches.",
+        label="Tone curve",
+        choices=("aces", "agx", "clamp"),
+        choice_labels={
+            "aces": "Filmic, rich colours (ACES)",
+            "agx": "Filmic, soft and natural (AgX, as in Blender)",
+            "clamp": "None: clipped at white (the papers' tables)",
+        },
+    )
     exposure: float = _opt(
         1.0,
-        "Multiplies the finished picture's light before it is mapped to the screen; "
-        "for the command line and presets, the panels show Brightness instead.",
-        label="Exposure",
+        "Multiplies the picture's light before it is mapped to the screen, on top of the "
+        "exposure and the brightness; for old command lines and presets.",
+        label="Exposure factor",
         unit="×",
         lo=0.0,
         hi=64.0,
@@ -287,7 +335,8 @@ class RenderSettings:
     )
     brightness: float = _opt(
         1.0,
-        "Dims or brightens every light of the scene; 100% is as the model was made.",
+        "How bright the picture is shown, on top of the exposure: 100% is as exposed, 50% "
+        "one exposure step darker; the lamps stay as the model gives them.",
         label="Brightness",
         unit="%",
         paper="TCR paper: scene brightness, read by the light term l",

@@ -10,7 +10,9 @@ before) and picks, every frame and per object, the level
 
 clamped to [0, n]. Which terms are on is a user choice (a toggle per term, or the paper's two
 presets); the 4-state motion model of the paper (viewpoint still/moving x gaze moving/fixed) is
-what switches the v and g terms on and off at run time.
+what switches the v and g terms on and off at run time. The brightness l reads is the one
+displayed (:func:`app.exposure.displayed_brightness`: how bright the picture shows the room,
+exposure and Brightness included, against 18% grey).
 
 Everything here is plain numpy / Python with no GL or Qt, so the renderer, the UI and the
 benchmark share one definition of "the level" and the tests can sweep it exhaustively. The level

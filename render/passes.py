@@ -472,16 +472,31 @@ def back_to_front(scene, indices: list[int], eye: np.ndarray) -> list[int]:
 
 
 class PresentPass(RenderPass):
-    """Both eyes side by side into the output, tone-mapped and sRGB-encoded; with the CPS
-    level map painted when visualised, and the photons' reuse when asked."""
+    """Both eyes side by side into the output, exposed (``frame.exposure``: 1 / L_max times
+    the Brightness, see ``render.exposure``), tone-mapped (``render.tone_mapping``) and
+    sRGB-encoded; with the CPS level map painted when visualised, and the photons' reuse when
+    asked."""
 
     name = "present"
     reads = ("hdr",)
     optional_reads = ("levels", "indirect", "show_reuse")
     writes = ("out",)
 
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
+        self.visualize = False
+        self.tone: dict[str, object] = {}
+
+    @staticmethod
+    def defines(settings) -> dict[str, object]:
+        """The tone curve's variant (render/shaders/exposure_tonemap.glsl): ACES, AgX or a
+        clamp at white."""
+        curve = settings.render.tone_mapping
+        return {"TONE_ACES": curve == "aces", "TONE_AGX": curve == "agx"}
+
     def configure(self, settings, scene, frame) -> bool:
         self.visualize = settings.cps.visualize
+        self.tone = self.defines(settings)
         return True
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
@@ -491,7 +506,7 @@ class PresentPass(RenderPass):
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "present.frag.glsl",
-            {"VISUALIZE": levels is not None, "SHOW_REUSE": show_reuse},
+            {"VISUALIZE": levels is not None, "SHOW_REUSE": show_reuse, **self.tone},
         )
         w, h = res.targets[0].size
         frame.out.use()

@@ -16,6 +16,7 @@ import moderngl
 import numpy as np
 
 from app.frame import FrameInput
+from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.scene import Scene
 from app.settings import Settings
@@ -32,6 +33,7 @@ from render.cps import (
     CpsState,
     CpsTemporalPass,
 )
+from render.exposure import Exposure, ExposurePass
 from render.gpu_scene import GpuScene
 from render.pass_graph import FrameContext, RenderPass, Resources, check_graph
 from render.passes import (
@@ -67,6 +69,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     EmissivePass,
     ForwardPass,
     BlendPass,
+    ExposurePass,
     PresentPass,
     ABSplitPass,
     OverlayPass,
@@ -99,6 +102,7 @@ class Renderer:
     cps_mask = _Pass[CpsMaskPass]()
     emissive = _Pass[EmissivePass]()
     forward = _Pass[ForwardPass]()
+    exposure_meter = _Pass[ExposurePass]()
     present = _Pass[PresentPass]()
     ab_split = _Pass[ABSplitPass]()
     overlay = _Pass[OverlayPass]()
@@ -123,6 +127,11 @@ class Renderer:
         self.frames = 0
         self._errors_logged: set[str] = set()
         self._empty = GpuScene(ctx, Scene("empty", [], []))
+        # Exposure: fixed or metered (render.exposure); stepped once a frame by frame_dt
+        # seconds (the headless hosts' fixed step; the window may set its own).
+        self.exposure = Exposure()
+        self.frame_dt = FIXED_DT
+        self._exposure_scale = self.exposure.step(settings.render, None, 0.0, False)
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -134,6 +143,9 @@ class Renderer:
         if self.gpu_scene is not None:
             self.gpu_scene.release()
             self.gpu_scene = None
+        self.exposure.reset()  # another room: meter it afresh
+        if "exposure_meter" in self._by_name:
+            self.exposure_meter.forget()
         if scene is not None:
             self.gpu_scene = GpuScene(
                 self.ctx, scene, self.settings.render.anisotropy, stream_in=stream_in
@@ -159,8 +171,11 @@ class Renderer:
                     )
         self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
         self.shaders.compute("lighting.comp.glsl")
-        for fragment in ("lighting.frag.glsl", "present.frag.glsl", "overlay.frag.glsl"):
+        for fragment in ("lighting.frag.glsl", "overlay.frag.glsl", "exposure_meter.frag.glsl"):
             self.shaders.program("fullscreen.vert.glsl", fragment)
+        self.shaders.program(
+            "fullscreen.vert.glsl", "present.frag.glsl", PresentPass.defines(self.settings)
+        )
 
     def _ensure_targets(self, width: int, height: int) -> None:
         if self.targets and self.targets[0].size == (width, height):
@@ -186,9 +201,9 @@ class Renderer:
         return FrameContext(
             eyes=frame.eyes,
             scene=self.gpu_scene or self._empty,
-            light_scale=r.brightness,
-            ambient=r.ambient * r.brightness,
-            exposure=r.exposure,
+            light_scale=1.0,  # lamps as the model gives them: Brightness is in the exposure
+            ambient=r.ambient,
+            exposure=self._exposure_scale * r.exposure,
             out=out,
             out_origin=origin,
             gaze=frame.gaze,
@@ -200,6 +215,28 @@ class Renderer:
             edge_hits=frame.edge_hits,
             split=split,
         )
+
+    def step_exposure(self) -> None:
+        """This frame's exposure: the fixed EV, or the last metering adapted by frame_dt."""
+        meter = self._by_name.get("exposure_meter")
+        metering = isinstance(meter, ExposurePass) and meter.enabled
+        grid = meter.take() if isinstance(meter, ExposurePass) else None
+        self._exposure_scale = self.exposure.step(
+            self.settings.render, grid, self.frame_dt, metering
+        )
+
+    def exposure_readout(self) -> str:
+        """``"Exposure EV 7.2 (auto)"``: the EV the last frame was shown at."""
+        return self.exposure.readout(self.settings.render)
+
+    def displayed_brightness(self) -> float:
+        """What TCR's light term reads (``app.exposure.displayed_brightness``)."""
+        return self.exposure.displayed_brightness(self.settings.render)
+
+    def exposure_state(self) -> tuple[float, float | None]:
+        """The last frame's EV before the Brightness and the room's metered EV (None: not
+        metered), for the session's TCR light term (``Session.exposure_state``)."""
+        return self.exposure.base_ev, self.exposure.scene_ev
 
     def configure(self, ctx: FrameContext) -> list[RenderPass]:
         """Ask every pass whether it runs (its own rule) and check the enabled list's reads
@@ -225,6 +262,7 @@ class Renderer:
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
         self.cps.ensure(self.targets)
+        self.step_exposure()
         ctx = self.frame_context(frame, out, origin, split)
         enabled = self.configure(ctx)
         scene = ctx.scene

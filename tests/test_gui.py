@@ -141,6 +141,12 @@ def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, 
         qtbot.waitUntil(lambda: session.levels == [level], timeout=5000)
         return grab(window)
 
+    # TCR's light term l reads how bright the picture shows the room: with automatic
+    # exposure (adapted) that is the Brightness alone (a fixed exposure shows this brightly
+    # lit quad 3 EV above 18% grey: l would stay 0 at 50%).
+    mode = window.panel.editors["render.exposure_mode"]
+    mode.setCurrentIndex(mode.findData("auto"))
+    assert s.render.exposure_mode == "auto"
     before = grab(window)
     panel.enabled.setChecked(True)
     panel.tint.setChecked(True)
@@ -165,7 +171,7 @@ def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, 
     send_mouse(window.view, QMouseEvent.Type.MouseButtonRelease, pos, Qt.MouseButton.LeftButton)
 
     # Editing a term of a preset makes a custom set; Brightness (the Settings tab's one
-    # control) feeds l and darkens the scene.
+    # control) feeds l (how bright the picture shows the quad) and darkens the scene.
     panel.terms["v"].setChecked(False)
     assert s.tcr.preset == "custom" and not s.tcr.use_v and s.tcr.use_d and s.tcr.use_l
     assert panel.preset.currentData() == "custom"

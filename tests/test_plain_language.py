@@ -206,12 +206,17 @@ def test_whole_numbers_are_shown_as_whole_numbers_and_one_control_per_setting(wi
 
 def test_exactly_one_brightness_control(window):
     tabs = _dock_tabs(window)
-    named = []
+    named, exposure = [], []
     for index in range(tabs.count()):
         for w in tabs.widget(index).findChildren(QWidget):
-            if isinstance(w, INPUTS) and re.search(r"bright|exposure", _row_label(w), re.I):
+            if isinstance(w, INPUTS) and re.search(r"bright", _row_label(w), re.I):
                 named.append((tabs.tabText(index), _row_label(w), w))
+            if isinstance(w, INPUTS) and re.search(r"exposure", _row_label(w), re.I):
+                exposure.append((tabs.tabText(index), _row_label(w)))
     assert [(tab, name) for tab, name, _w in named] == [("Settings", "Brightness")]
+    # Beside it, how the picture is exposed: automatic or at a fixed value (in EV), which
+    # Brightness then compensates; no second brightness anywhere.
+    assert exposure == [("Settings", "Exposure"), ("Settings", "Fixed exposure value")]
     control = named[0][2]
     assert isinstance(control, QSpinBox) and control.text() == "100%"
     control.setValue(40)
@@ -277,7 +282,10 @@ def test_a_hidden_setting_from_a_preset_is_mentioned_in_the_settings_tab(qtbot):
     s.apply(["render.exposure=2"])
     panel.refresh()  # as after loading a preset
     assert not panel.hidden_note.isHidden()
-    assert panel.hidden_note.text() == "Also set on the command line or by a preset: Exposure 2×."
+    assert (
+        panel.hidden_note.text()
+        == "Also set on the command line or by a preset: Exposure factor 2×."
+    )
 
 
 def test_a_refused_value_is_named_by_its_label(qtbot):

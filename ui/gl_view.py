@@ -127,10 +127,13 @@ class StereoView(QOpenGLWidget):
                 self.timer.fps, self.renderer.pass_ms(), self.session.settings, frame.gaze_fixed
             )
             self.renderer.overlay.set_text_image(text_image(lines))
+        # Automatic exposure adapts by the last frame's wall time (the headless hosts' fixed step).
+        self.renderer.frame_dt = min(0.25, self.timer.times[-1]) if self.timer.times else 1 / 60
         if self.presenter is not None and self.presenter.active:
             self.presenter.render(self.renderer, frame, fbo, layout.gl_origin)
         else:
             self.renderer.render(frame, fbo, layout.gl_origin)
+        self.session.exposure_state = self.renderer.exposure_state()  # TCR's l reads it
         self.timer.tick(now)
         self.frame_log.record(now, self.renderer.pass_ms())
 

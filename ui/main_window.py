@@ -737,6 +737,7 @@ class MainWindow(QMainWindow):
             "gazed": s.gazed_object(),
             "resident_mb": self.view.texture_resident_bytes() / 1e6,
             "scene": f"{scene.name} · {scene.triangle_count:,} tris" if scene else "",
+            "exposure": self.view.renderer.exposure_readout() if self.view.renderer else "",
         }
 
     def closeEvent(self, event) -> None:

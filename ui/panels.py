@@ -348,6 +348,8 @@ class EvaluationBar(QWidget):
         "resident": "Memory the textures take on the graphics card.",
         "gazed": "The object under the cursor, which stands in for your gaze.",
         "scene": "The model shown and its size in triangles.",
+        "exposure": "The exposure the picture is shown at, in EV: automatic\n"
+        "(adapting like the eye) or fixed, with the Brightness (Settings tab).",
     }
 
     def __init__(self, poll: Callable[[], dict], parent=None) -> None:
@@ -355,7 +357,7 @@ class EvaluationBar(QWidget):
         self.poll = poll
         layout = QHBoxLayout(self)
         layout.setContentsMargins(8, 2, 8, 2)
-        names = ("phase", "state", "fps", "resident", "gazed", "scene")
+        names = ("phase", "state", "fps", "resident", "gazed", "scene", "exposure")
         self.labels = {name: QLabel() for name in names}
         for name in names:
             self.labels[name].setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
@@ -378,3 +380,4 @@ class EvaluationBar(QWidget):
         self.labels["fps"].setText(f"{info.get('fps', 0.0):.1f} fps")
         self.labels["gazed"].setText(f"Looking at: {info.get('gazed') or '-'}")
         self.labels["scene"].setText(info.get("scene", ""))
+        self.labels["exposure"].setText(info.get("exposure", ""))

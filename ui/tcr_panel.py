@@ -116,8 +116,9 @@ class TcrPanel(QWidget):
         # Brightness has one control (Settings tab); the light rule reads it, so show it here.
         self.brightness = QLabel()
         self.brightness.setToolTip(
-            "The scene's brightness, which the dim-light rule reads;\n"
-            "change it with Brightness in the Settings tab."
+            "How bright the picture shows the room (its average against\n"
+            "18% grey), which the dim-light rule reads; change it with\n"
+            "Brightness or the exposure in the Settings tab."
         )
         form.addRow(QLabel("Scene brightness"), self.brightness)
         self.tint = self.form.add_row(form, "tcr.tint")
@@ -206,7 +207,7 @@ class TcrPanel(QWidget):
         phase = PHASES[phase_name(terms_from_settings(t))] if t.enabled else "off"
         self.phase.setText(f"Rules in use: {phase}")
         self.brightness.setText(
-            f"{self.settings.render.brightness * 100:.0f}% (change it in Settings, Picture)"
+            f"{s.displayed_brightness() * 100:.0f}% (change it in Settings, Picture)"
         )
         reason = s.reason(s.gazed)
         name = s.gazed_object()

@@ -1,6 +1,10 @@
 #version 430
-// Presentation of one eye into its half of the side-by-side view: tone map + sRGB encode.
-// The lighting output is already finite (storable), so no checks are repeated here.
+// Presentation of one eye into its half of the side-by-side view: exposure, tone curve
+// (exposure_tonemap.glsl: ACES, AgX or a clamp) and sRGB encoding. u_exposure is 1 / L_max,
+// L_max = 1.2 * 2^EV100 cd/m2 the luminance shown as white (app/exposure.py), times the
+// Brightness. The lighting output is finite (storable); an emissive surface brighter than a
+// half float holds (inf) is clamped to the largest one, so the tone curves never see inf/inf.
+#include "exposure_tonemap.glsl"
 
 uniform sampler2D u_eye_color;
 uniform float u_exposure;
@@ -22,10 +26,6 @@ uniform sampler2D u_indirect;
 uniform int u_paint_reuse;  // 1 for the right eye
 #endif
 
-vec3 tonemap(vec3 x) {  // Narkowicz's ACES fit: filmic shoulder, keeps mid-tones.
-    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
-}
-
 vec3 srgb_encode(vec3 c) {
     vec3 curve = 1.055 * exp2(log2(max(c, vec3(1e-7))) * (1.0 / 2.4)) - 0.055;
     return mix(c * 12.92, curve, step(0.0031308, c));
@@ -33,8 +33,8 @@ vec3 srgb_encode(vec3 c) {
 
 void main() {
     ivec2 q = ivec2(gl_FragCoord.xy) - u_origin;
-    vec3 hdr = texelFetch(u_eye_color, q, 0).rgb;
-    vec3 c = srgb_encode(tonemap(hdr * u_exposure));
+    vec3 hdr = min(texelFetch(u_eye_color, q, 0).rgb, vec3(65504.0));
+    vec3 c = srgb_encode(tone_map(hdr * u_exposure));
 #ifdef VISUALIZE
     int s = int(texelFetch(u_levels, q >> 1, 0).r);
     if (s > 0) c = mix(c, LEVEL_COLOURS[min(s, CPS_MAX_LEVEL)], 0.5);
