@@ -90,6 +90,8 @@ TEXTURE_UNITS = {
             "eye_color",
             "text",
             "heat",
+            "sky",  # the baked sky (render.sky)
+            "gb_sky",  # the G-buffer's sky visibility
         )
     )
 }

@@ -29,6 +29,7 @@ class GpuMesh:
     material: Material
     texture: int | None  # index into GpuScene.streamer
     vertex_count: int
+    sky_vbo: moderngl.Buffer  # per vertex: sky visibility front, back (2f; 0 until baked)
 
 
 class GpuScene:
@@ -57,6 +58,7 @@ class GpuScene:
                     mat,
                     mat.texture,
                     int(m.indices.size),
+                    ctx.buffer(np.zeros((max(len(m.positions), 1), 2), np.float32).tobytes()),
                 )
             )
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
@@ -83,8 +85,11 @@ class GpuScene:
                 f if a in attrs else f[0] + "x4"
                 for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS)
             )
+            buffers = [(mesh.vbo, fmt, *attrs)]
+            if "in_sky" in program:
+                buffers.append((mesh.sky_vbo, "2f", "in_sky"))
             self._vaos[key] = self.ctx.vertex_array(
-                program, [(mesh.vbo, fmt, *attrs)], index_buffer=mesh.ibo, index_element_size=4
+                program, buffers, index_buffer=mesh.ibo, index_element_size=4
             )
         return self._vaos[key]
 
@@ -94,10 +99,18 @@ class GpuScene:
         for m in self.meshes:
             m.vbo.release()
             m.ibo.release()
+            m.sky_vbo.release()
         self.streamer.release()
         self.light_buffer.release()
         self._vaos.clear()
         self.meshes.clear()
+
+    def set_sky_visibility(self, values: list[np.ndarray]) -> None:
+        """Each mesh's per-vertex sky visibility ((N, 2): front, back), from app.sky_light."""
+        for mesh, v in zip(self.meshes, values):
+            data = np.ascontiguousarray(v, np.float32)
+            if data.nbytes == mesh.sky_vbo.size:
+                mesh.sky_vbo.write(data.tobytes())
 
     @property
     def texture_bytes(self) -> int:

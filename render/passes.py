@@ -46,10 +46,11 @@ class EyeTargets:
         self.normal = ctx.texture(self.size, 4, dtype="f2")  # xyz normal, w roughness
         self.depth = ctx.depth_texture(self.size)
         self.color = ctx.texture(self.size, 4, dtype="f2")  # linear HDR radiance
-        for t in (self.albedo, self.normal, self.depth, self.color):
+        self.sky = ctx.texture(self.size, 1)  # the share of the sky the surface sees
+        for t in (self.albedo, self.normal, self.depth, self.color, self.sky):
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             t.repeat_x = t.repeat_y = False
-        self.gbuffer = ctx.framebuffer([self.albedo, self.normal], self.depth)
+        self.gbuffer = ctx.framebuffer([self.albedo, self.normal, self.sky], self.depth)
         self.forward = ctx.framebuffer([self.color], self.depth)
         # Tiled light culling: a light count per 16x16 tile and each tile's list of lights.
         self.tiles = (-(-width // LIGHT_TILE), -(-height // LIGHT_TILE))
@@ -73,6 +74,7 @@ class EyeTargets:
             self.normal,
             self.depth,
             self.color,
+            self.sky,
             self.tile_counts,
             self.tile_lists,
             *self.bounds_fbos,
@@ -105,13 +107,20 @@ def scene_uniforms(prog: moderngl.Program | moderngl.ComputeShader, frame: Frame
 
 
 def _draw_meshes(
-    ctx: moderngl.Context, shaders: ShaderLibrary, frame: FrameContext, eye: EyeView, fragment: str
+    ctx: moderngl.Context,
+    shaders: ShaderLibrary,
+    frame: FrameContext,
+    eye: EyeView,
+    fragment: str,
+    sky=None,
 ) -> None:
     """Draw every mesh for one eye with its material (texture and TCR mode as variants)."""
     streamer = frame.scene.streamer
     tcr = frame.levels is not None
     for index, mesh in enumerate(frame.scene.meshes):
         defines: dict[str, object] = {"HAS_TEXTURE": mesh.texture is not None}
+        if sky is not None:  # the forward path's daylight (render.sky)
+            defines["SKY"] = True
         if tcr:
             defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
             defines["TCR_TINT"] = frame.tint
@@ -131,6 +140,8 @@ def _draw_meshes(
         if "u_eye" in prog:  # the forward path: it lights the fragments itself
             uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
+            if sky is not None:
+                sky.bind(prog)
         level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
             resident = streamer.resident[mesh.texture]
@@ -163,7 +174,7 @@ class GBufferPass(RenderPass):
 
 
 # What the deferred lighting uses when an earlier pass made it (deferred.glsl variants).
-LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map")
+LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map", "sky")
 
 
 class LightingPass(RenderPass):
@@ -216,6 +227,7 @@ def lighting_defines(res: Resources) -> dict[str, object]:
     defines: dict[str, object] = {
         "TILED_LIGHTS": res.written("tile_lists"),
         "INDIRECT": res.get("indirect") is not None,
+        "SKY": res.get("sky") is not None,
     }
     if fused is not None:
         defines.update(INDIRECT_FUSED=True, **fused[1])
@@ -237,6 +249,9 @@ def deferred_inputs(
     bind_texture(prog, "gb_albedo", tgt.albedo)
     bind_texture(prog, "gb_normal", tgt.normal)
     bind_texture(prog, "gb_depth", tgt.depth)
+    if res.get("sky") is not None:
+        res.get("sky").bind(prog)
+        bind_texture(prog, "gb_sky", tgt.sky)
     use_tiles(prog, res, index)
     set_uniforms(
         prog,
@@ -374,6 +389,7 @@ class ForwardPass(RenderPass):
     """The baseline: geometry lit per fragment, straight into each eye's HDR target."""
 
     name = "forward"
+    optional_reads = ("sky",)
     writes = ("depth", "hdr")
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
@@ -392,7 +408,9 @@ class ForwardPass(RenderPass):
             for eye, tgt in zip(frame.eyes, res.targets):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
-                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl")
+                _draw_meshes(
+                    ctx, self.shaders, frame, eye, "forward.frag.glsl", sky=res.get("sky")
+                )
         self.samples = int(self._samples_query.samples)
         ctx.disable(moderngl.DEPTH_TEST)
 

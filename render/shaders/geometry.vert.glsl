@@ -4,6 +4,7 @@ layout(location = 0) in vec3 in_position;
 layout(location = 1) in vec3 in_normal;
 layout(location = 2) in vec2 in_uv;
 layout(location = 3) in vec3 in_color;
+layout(location = 4) in vec2 in_sky;  // sky visibility: front, back (app/sky_light.py)
 
 uniform mat4 u_view_projection;
 
@@ -11,11 +12,13 @@ out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
 out vec3 v_color;
+out vec2 v_sky;
 
 void main() {
     v_world = in_position;
     v_normal = in_normal;
     v_uv = in_uv;
     v_color = in_color;
+    v_sky = in_sky;
     gl_Position = u_view_projection * vec4(in_position, 1.0);
 }

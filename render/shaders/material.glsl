@@ -9,6 +9,7 @@ in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec3 v_color;
+in vec2 v_sky;
 
 uniform vec4 u_base_color;  // linear RGBA
 uniform float u_roughness;
@@ -46,4 +47,8 @@ vec3 surface_albedo() {
 vec3 surface_normal() {
     vec3 n = safe_normalize(v_normal, vec3(0.0, 1.0, 0.0));
     return gl_FrontFacing ? n : -n;  // interiors are seen from both sides
+}
+
+float surface_sky() {
+    return gl_FrontFacing ? v_sky.x : v_sky.y;  // the share of the sky the side seen sees
 }
