@@ -137,7 +137,9 @@ def bake_sky(settings: SkySettings | Settings, size: tuple[int, int] = SKY_SIZE)
         try:
             photo = read_panorama(sky.image, size)
         except (OSError, ValueError) as exc:
-            warning = f"The sky photo {sky.image} could not be used ({exc}); showing the computed sky."
+            warning = (
+                f"The sky photo {sky.image} could not be used ({exc}); showing the computed sky."
+            )
             log.warning("%s", warning)
         else:
             # A photo's pixel values have no unit: scale its dome to the computed dome's mean.
@@ -153,25 +155,24 @@ def bake_sky(settings: SkySettings | Settings, size: tuple[int, int] = SKY_SIZE)
 def read_panorama(path: str, size: tuple[int, int] = SKY_SIZE) -> np.ndarray:
     """An equirectangular photo as linear RGB (H, W, 3) float, resampled to ``size``: HDR and
     EXR files as stored (linear), JPG and PNG decoded from sRGB. Raises OSError or ValueError."""
-    import imageio.v3 as iio
     from PIL import Image
 
     suffix = Path(path).suffix.lower()
     if not Path(path).is_file():
         raise OSError("no such file")
-    if suffix in (".hdr", ".exr"):
-        try:
-            data = np.asarray(iio.imread(path), np.float32)
-        except Exception as exc:  # noqa: BLE001 - any decoder failure is a bad file
-            raise ValueError(f"not a readable {suffix[1:].upper()} image: {exc}") from exc
-        linear = True
-    else:
-        try:
+    linear = suffix in (".hdr", ".exr")
+    try:
+        if suffix == ".hdr":
+            data = read_radiance_hdr(path)
+        elif suffix == ".exr":
+            data = read_exr(path)
+        else:
             with Image.open(path) as im:
                 data = np.asarray(im.convert("RGB"), np.float32) / 255.0
-        except Exception as exc:  # noqa: BLE001 - Pillow raises many kinds for a bad file
-            raise ValueError(f"not a readable image: {exc}") from exc
-        linear = False
+    except (OSError, ValueError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - the decoders raise many kinds for a bad file
+        raise ValueError(f"not a readable image: {exc}") from exc
     if data.ndim == 2:
         data = np.repeat(data[..., None], 3, axis=2)
     data = data[..., :3]
@@ -190,3 +191,73 @@ def read_panorama(path: str, size: tuple[int, int] = SKY_SIZE) -> np.ndarray:
     sums = np.add.reduceat(row_sums, cols[:-1], axis=1)
     counts = np.diff(rows)[:, None, None] * np.diff(cols)[None, :, None]
     return np.maximum(sums / np.maximum(counts, 1), 0.0)
+
+
+def read_exr(path: str) -> np.ndarray:
+    """An OpenEXR image's RGB channels as float32 (H, W, 3), through the OpenEXR package."""
+    import OpenEXR
+
+    with OpenEXR.File(path) as f:
+        channels = f.channels()
+        if "RGB" in channels:
+            return np.asarray(channels["RGB"].pixels, np.float32)
+        if "RGBA" in channels:
+            return np.asarray(channels["RGBA"].pixels, np.float32)[..., :3]
+        names = [n for n in ("R", "G", "B") if n in channels]
+        if not names:
+            raise ValueError("the EXR file has no colour channels")
+        return np.stack([np.asarray(channels[n].pixels, np.float32) for n in names], -1)
+
+
+def read_radiance_hdr(path: str) -> np.ndarray:
+    """A Radiance RGBE picture (.hdr, G. Ward, "Real Pixels", Graphics Gems II, 1991) as
+    float32 (H, W, 3): flat or run-length encoded scanlines, the usual -Y H +X W orientation."""
+    raw = Path(path).read_bytes()
+    if not raw.startswith((b"#?RADIANCE", b"#?RGBE")):
+        raise ValueError("not a Radiance HDR file")
+    end = raw.find(b"\n\n")
+    if end < 0:
+        raise ValueError("the HDR header does not end")
+    if b"FORMAT=32-bit_rle_xyze" in raw[:end]:
+        raise ValueError("XYZE HDR files are not supported")
+    line_end = raw.find(b"\n", end + 2)
+    size = raw[end + 2 : line_end].split()
+    if len(size) != 4 or size[0] != b"-Y" or size[2] != b"+X":
+        raise ValueError("unsupported HDR orientation")
+    height, width = int(size[1]), int(size[3])
+    data = np.frombuffer(raw, np.uint8, offset=line_end + 1)
+    rgbe = np.empty((height, width, 4), np.uint8)
+    pos = 0
+    for y in range(height):
+        head = data[pos : pos + 4]
+        rle = 8 <= width < 32768 and len(head) == 4 and head[0] == 2 and head[1] == 2
+        if not rle or (int(head[2]) << 8 | int(head[3])) != width:
+            count = width * 4
+            if pos + count > data.size:
+                raise ValueError("the HDR file is cut short")
+            rgbe[y] = data[pos : pos + count].reshape(width, 4)
+            pos += count
+            continue
+        pos += 4
+        for c in range(4):
+            x = 0
+            while x < width:
+                if pos >= data.size:
+                    raise ValueError("the HDR file is cut short")
+                n = int(data[pos])
+                pos += 1
+                if n > 128:  # a run
+                    n -= 128
+                    if x + n > width or pos >= data.size:
+                        raise ValueError("bad HDR run length")
+                    rgbe[y, x : x + n, c] = data[pos]
+                    pos += 1
+                else:
+                    if n == 0 or x + n > width or pos + n > data.size:
+                        raise ValueError("bad HDR run length")
+                    rgbe[y, x : x + n, c] = data[pos : pos + n]
+                    pos += n
+                x += n
+    e = rgbe[..., 3].astype(np.int32)
+    scale = np.where(e > 0, np.ldexp(1.0, e - 136), 0.0).astype(np.float32)
+    return rgbe[..., :3].astype(np.float32) * scale[..., None]

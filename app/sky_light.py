@@ -105,9 +105,7 @@ def sky_visibility(
     side_nrm = np.concatenate([nrm, -nrm])
     wanted = side_pos.shape[0]
     budget = max(1, max_rays // max(1, rays))
-    sampled = (
-        np.arange(wanted) if wanted <= budget else np.sort(rng.choice(wanted, budget, False))
-    )
+    sampled = np.arange(wanted) if wanted <= budget else np.sort(rng.choice(wanted, budget, False))
     seen = np.zeros(sampled.shape[0], np.float32)
     per_chunk = max(1, CHUNK_RAYS // rays)
     for start in range(0, sampled.shape[0], per_chunk):

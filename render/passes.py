@@ -408,9 +408,7 @@ class ForwardPass(RenderPass):
             for eye, tgt in zip(frame.eyes, res.targets):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
-                _draw_meshes(
-                    ctx, self.shaders, frame, eye, "forward.frag.glsl", sky=res.get("sky")
-                )
+                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl", sky=res.get("sky"))
         self.samples = int(self._samples_query.samples)
         ctx.disable(moderngl.DEPTH_TEST)
 

@@ -279,3 +279,71 @@ def test_the_sun_moves_when_the_time_changes_without_reloading_the_scene(host):
     assert host.renderer.gpu_scene is uploaded
     later = host.renderer.frame_lights()[-1].direction
     assert math.dist(first, later) > 0.5
+
+
+def _write_rgbe(path, rgb: np.ndarray) -> None:
+    """A Radiance .hdr file of ``rgb`` (H, W, 3), run-length encoded per channel."""
+    h, w, _ = rgb.shape
+    peak = rgb.max(axis=2)
+    m, e = np.frexp(np.maximum(peak, 1e-30))
+    scale = np.where(peak > 1e-30, m * 256.0 / np.maximum(peak, 1e-30), 0.0)
+    rgbe = np.zeros((h, w, 4), np.uint8)
+    rgbe[..., :3] = np.clip(rgb * scale[..., None], 0, 255).astype(np.uint8)
+    rgbe[..., 3] = np.where(peak > 1e-30, e + 128, 0)
+    out = bytearray(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {h} +X {w}\n".encode())
+    for y in range(h):
+        out += bytes([2, 2, w >> 8, w & 255])
+        for c in range(4):
+            row = rgbe[y, :, c]
+            if (row == row[0]).all():  # runs
+                for x in range(0, w, 127):
+                    out += bytes([128 + min(127, w - x), int(row[0])])
+            else:  # literal dumps
+                for x in range(0, w, 128):
+                    chunk = row[x : x + 128]
+                    out += bytes([len(chunk)]) + chunk.tobytes()
+    path.write_bytes(bytes(out))
+
+
+@pytest.mark.parametrize("suffix", [".hdr", ".exr"])
+def test_an_hdr_sky_photo_keeps_its_light(tmp_path, suffix):
+    """A high-dynamic-range panorama: bright sky over a dim ground, read as stored (linear)."""
+    rgb = np.empty((32, 64, 3), np.float32)
+    rgb[:16] = np.linspace(0.5, 2.0, 64, dtype=np.float32)[None, :, None] * [0.3, 0.5, 1.0]
+    rgb[16:] = (0.02, 0.03, 0.01)
+    path = tmp_path / f"pano{suffix}"
+    if suffix == ".hdr":
+        _write_rgbe(path, rgb)
+    else:
+        import OpenEXR
+
+        OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": rgb}).write(str(path))
+    s = Settings()
+    s.set("sky.image", str(path))
+    baked = bake_sky(s, size=(64, 32))
+    assert baked.from_image and baked.warning is None
+    ratio = baked.image[4, 40] / baked.image[28, 40]
+    assert ratio == pytest.approx(rgb[4, 40] / rgb[28, 40], rel=0.05)  # as stored, linear
+
+
+def test_the_time_slider_moves_the_sun_and_says_where_it_is(qtbot):
+    from ui.sky_panel import SkyPanel
+
+    s = Settings()
+    changed: list[str] = []
+    panel = SkyPanel(s, on_change=changed.append)
+    qtbot.addWidget(panel)
+    slider = panel.editors["sky.time"]
+    assert slider is panel.time_slider and panel.time_text.text() == "10:00"
+    assert set(panel.editors) == set(s.shown_keys("sky"))
+    assert panel.sun.text() == "Sun 55° above the horizon, south-east"  # Paris, 21 June
+    slider.setValue(15 * 6 + 3)  # dragged to 15:30
+    assert s.sky.time == "15:30" and changed[-1] == "sky.time"
+    assert panel.time_text.text() == "15:30"
+    assert panel.sun.text().endswith("above the horizon, west")
+    slider.setValue(23 * 6 + 5)
+    assert s.sky.time == "23:50"
+    assert "below the horizon" in panel.sun.text() and "no sunlight" in panel.sun.text()
+    s.set("sky.time", "06:00")  # a preset, say
+    panel.refresh()
+    assert slider.value() == 36 and panel.time_text.text() == "06:00"
