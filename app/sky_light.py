@@ -30,7 +30,7 @@ log = logging.getLogger(__name__)
 RAYS_PER_SIDE = 48
 SMOOTH_ROUNDS = 2
 MAX_RAYS = 2_000_000  # about 3 to 10 s of embree on one core
-CHUNK_RAYS = 65536
+CHUNK_RAYS = 16384  # rays per embree call: short holds of the interpreter lock
 OFFSET_M = 2e-3  # rays start this far off the surface (no self-hits)
 NORMAL_WEIGHT_M = 0.25  # nearest-vertex match: a flipped normal counts as 0.5 m away
 
@@ -89,9 +89,7 @@ def sky_visibility(
     """Per mesh, an (N, 2) float32 array: the share of the sky each vertex sees on the side
     its normal points to and on the other side. None when ``cancelled()`` turned true."""
     rng = np.random.default_rng(seed)
-    if caster is None:
-        caster = scene.ray_caster if isinstance(scene.ray_caster, RayCaster) else None
-    if caster is None:
+    if caster is None:  # its own: embree builds a shared one lazily, not safely from two threads
         caster = RayCaster(scene.triangles())
     if not scene.meshes:
         return []

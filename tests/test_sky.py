@@ -201,8 +201,8 @@ def test_the_floor_brightens_towards_noon(host):
 def test_the_sky_is_seen_through_the_window(host):
     scene = room()
     pose = ((0.0, 1.6, 0.0), 180.0, 10.0)
-    for path in ("deferred", "forward"):
-        hdr = look(host, scene, *pose, render__path=path)
+    for path, mitigation in (("deferred", "none"), ("forward", "none"), ("deferred", "cps")):
+        hdr = look(host, scene, *pose, render__path=path, cps__mode=mitigation)
         r, c = pixel(host, *pose, (0.0, 2.3, 2.0))  # in the window, above the horizon
         sky = hdr[r, c]
         assert sky[2] > 1.1 * sky[0], path  # blue
@@ -210,6 +210,7 @@ def test_the_sky_is_seen_through_the_window(host):
         wall = hdr[pixel(host, *pose, (-1.5, 2.7, 2.0))]
         assert not np.allclose(wall, sky, rtol=0.2), path
     host.settings.set("render.path", "deferred")
+    host.settings.set("cps.mode", "none")
 
 
 def test_the_sky_lights_the_floor_near_the_window_more_than_the_far_corner(host):
@@ -347,3 +348,36 @@ def test_the_time_slider_moves_the_sun_and_says_where_it_is(qtbot):
     s.set("sky.time", "06:00")  # a preset, say
     panel.refresh()
     assert slider.value() == 36 and panel.time_text.text() == "06:00"
+
+
+def test_daylight_from_the_window_tab_brightens_the_view(qtbot):
+    """The "Daylight" check box in the Sun and sky tab: the sky shows around the model (it
+    was the dark background), with no scene reload."""
+    from PyQt6.QtWidgets import QCheckBox
+
+    from tests.test_gui import grab
+    from tests.test_render import checker_scene
+    from ui.main_window import MainWindow
+
+    s = Settings()
+    s.render.overlay = False
+    w = MainWindow(s, checker_scene())
+    qtbot.addWidget(w)
+    w.view.setFixedSize(240, 135)
+    w.show()
+    qtbot.waitExposed(w)
+    qtbot.waitUntil(lambda: w.view.renderer is not None, timeout=10000)
+    before = grab(w)
+    renderer = w.view.renderer
+    uploaded = renderer.gpu_scene
+    box = w.sky_panel.editors["sky.enabled"]
+    assert isinstance(box, QCheckBox) and box.text() == "Daylight"
+    box.setChecked(True)
+    assert s.sky.enabled
+    w.view.repaint()
+    after = grab(w)
+    corner = (slice(0, 8), slice(0, 8))  # above the picture quad: the background
+    assert before[corner].mean() < 30 and after[corner].mean() > 200
+    assert renderer.gpu_scene is uploaded
+    assert [light.kind for light in renderer.frame_lights()][-1] == "directional"
+    w.close()
