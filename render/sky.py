@@ -172,7 +172,9 @@ class SkyPass(RenderPass):
         return bool(settings.sky.enabled)
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
-        sky: SkyFrame = res.get("sky")
+        sky: SkyFrame | None = res.get("sky")
+        if sky is None:  # the daylight pass failed this frame (logged once): keep the background
+            return
         prog = self.shaders.program("sky.vert.glsl", "sky.frag.glsl")
         ctx = self.ctx
         ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)  # after a compute lighting
