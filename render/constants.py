@@ -98,6 +98,8 @@ TEXTURE_UNITS = {
             "ao_depth",
             "ao_normal",
             "ao_raw",
+            "sky",  # the baked sky (render.sky)
+            "gb_sky",  # the G-buffer's sky visibility
         )
     )
 }

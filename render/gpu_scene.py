@@ -50,6 +50,7 @@ class GpuMesh:
     material: Material
     texture: int | None  # index into GpuScene.streamer
     vertex_count: int
+    sky_vbo: moderngl.Buffer  # per vertex: sky visibility front, back (2f; 0 until baked)
     tangents: bool = False  # the vertex buffer has a tangent (TANGENT_FORMAT)
     centre: tuple[float, float, float] = (0.0, 0.0, 0.0)  # bounding-box centre (blend order)
     maps: dict[str, moderngl.Texture] | None = None  # sampler name -> material map
@@ -126,6 +127,7 @@ class GpuScene:
                     mat,
                     mat.texture,
                     int(m.indices.size),
+                    ctx.buffer(np.zeros((max(len(m.positions), 1), 2), np.float32).tobytes()),
                     tangents,
                     (float(centre[0]), float(centre[1]), float(centre[2])),
                     maps,
@@ -213,8 +215,11 @@ class GpuScene:
             fmt = " ".join(
                 f if a in attrs else f[0] + "x4" for f, a in zip(layout[0].split(), layout[1])
             )
+            buffers = [(mesh.vbo, fmt, *attrs)]
+            if "in_sky" in program:
+                buffers.append((mesh.sky_vbo, "2f", "in_sky"))
             self._vaos[key] = self.ctx.vertex_array(
-                program, [(mesh.vbo, fmt, *attrs)], index_buffer=mesh.ibo, index_element_size=4
+                program, buffers, index_buffer=mesh.ibo, index_element_size=4
             )
         return self._vaos[key]
 
@@ -269,6 +274,7 @@ class GpuScene:
         for m in self.meshes:
             m.vbo.release()
             m.ibo.release()
+            m.sky_vbo.release()
         self.streamer.release()
         for tex in self._maps.values():
             tex.release()
@@ -276,6 +282,13 @@ class GpuScene:
         self.light_buffer.release()
         self._vaos.clear()
         self.meshes.clear()
+
+    def set_sky_visibility(self, values: list[np.ndarray]) -> None:
+        """Each mesh's per-vertex sky visibility ((N, 2): front, back), from app.sky_light."""
+        for mesh, v in zip(self.meshes, values):
+            data = np.ascontiguousarray(v, np.float32)
+            if data.nbytes == mesh.sky_vbo.size:
+                mesh.sky_vbo.write(data.tobytes())
 
     @property
     def texture_bytes(self) -> int:

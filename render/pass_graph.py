@@ -44,6 +44,7 @@ RESOURCES = {
     "photon_map": "the photon map and gather defines the lighting gathers itself (fused)",
     "show_reuse": "flag: paint the right eye's reused / gathered indirect pixels",
     "ao": "per eye: ambient occlusion of the ambient term (full resolution)",
+    "sky": "the baked sky and the sun for this frame (daylight on)",
     "hdr": "per eye: linear HDR colour",
     "out": "the host's framebuffer: both eyes tone-mapped side by side",
 }

@@ -47,10 +47,11 @@ class EyeTargets:
         self.normal = ctx.texture(self.size, 4, dtype="f2")  # xyz normal, w roughness
         self.depth = ctx.depth_texture(self.size)
         self.color = ctx.texture(self.size, 4, dtype="f2")  # linear HDR radiance
-        for t in (self.albedo, self.normal, self.depth, self.color):
+        self.sky = ctx.texture(self.size, 1)  # the share of the sky the surface sees
+        for t in (self.albedo, self.normal, self.depth, self.color, self.sky):
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             t.repeat_x = t.repeat_y = False
-        self.gbuffer = ctx.framebuffer([self.albedo, self.normal], self.depth)
+        self.gbuffer = ctx.framebuffer([self.albedo, self.normal, self.sky], self.depth)
         self.forward = ctx.framebuffer([self.color], self.depth)
         # Tiled light culling: a light count per 16x16 tile and each tile's list of lights.
         self.tiles = (-(-width // LIGHT_TILE), -(-height // LIGHT_TILE))
@@ -74,6 +75,7 @@ class EyeTargets:
             self.normal,
             self.depth,
             self.color,
+            self.sky,
             self.tile_counts,
             self.tile_lists,
             *self.bounds_fbos,
@@ -113,6 +115,7 @@ def _draw_meshes(
     fragment: str,
     order: list[int] | None = None,
     ao: moderngl.Texture | None = None,
+    sky=None,
 ) -> None:
     """Draw meshes for one eye with their materials (maps, alpha mode and TCR mode as
     variants): ``order``, or every mesh that is not blended (the blend pass draws those);
@@ -127,6 +130,8 @@ def _draw_meshes(
         defines = material_defines(mesh)
         if ao is not None:
             defines["AO"] = True
+        if sky is not None:  # the forward path's daylight (render.sky)
+            defines["SKY"] = True
         if tcr:
             defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
             defines["TCR_TINT"] = frame.tint
@@ -136,6 +141,8 @@ def _draw_meshes(
         if "u_eye" in prog:  # the forward and blend paths: they light the fragments themselves
             uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
+            if sky is not None:
+                sky.bind(prog)
         if ao is not None:
             bind_texture(prog, "ao", ao)
         level = frame.levels[index] if frame.levels is not None else 0
@@ -169,7 +176,7 @@ class GBufferPass(RenderPass):
 
 
 # What the deferred lighting uses when an earlier pass made it (deferred.glsl variants).
-LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map", "ao")
+LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map", "ao", "sky")
 
 
 class LightingPass(RenderPass):
@@ -223,6 +230,7 @@ def lighting_defines(res: Resources) -> dict[str, object]:
         "TILED_LIGHTS": res.written("tile_lists"),
         "INDIRECT": res.get("indirect") is not None,
         "AO": res.get("ao") is not None,  # ambient occlusion (render/ao.py)
+        "SKY": res.get("sky") is not None,
     }
     if fused is not None:
         defines.update(INDIRECT_FUSED=True, **fused[1])
@@ -244,6 +252,9 @@ def deferred_inputs(
     bind_texture(prog, "gb_albedo", tgt.albedo)
     bind_texture(prog, "gb_normal", tgt.normal)
     bind_texture(prog, "gb_depth", tgt.depth)
+    if res.get("sky") is not None:
+        res.get("sky").bind(prog)
+        bind_texture(prog, "gb_sky", tgt.sky)
     use_tiles(prog, res, index)
     if res.get("ao") is not None:
         bind_texture(prog, "ao", res.get("ao")[index])
@@ -395,7 +406,7 @@ class ForwardPass(RenderPass):
     """The baseline: geometry lit per fragment, straight into each eye's HDR target."""
 
     name = "forward"
-    optional_reads = ("ao",)
+    optional_reads = ("ao", "sky")
     writes = ("depth", "hdr")
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
@@ -416,7 +427,15 @@ class ForwardPass(RenderPass):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
                 eye_ao = ao[index] if ao is not None else None
-                _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl", ao=eye_ao)
+                _draw_meshes(
+                    ctx,
+                    self.shaders,
+                    frame,
+                    eye,
+                    "forward.frag.glsl",
+                    ao=eye_ao,
+                    sky=res.get("sky"),
+                )
         self.samples = int(self._samples_query.samples)
         ctx.disable(moderngl.DEPTH_TEST)
 
@@ -434,6 +453,7 @@ class BlendPass(RenderPass):
 
     name = "blend"
     reads = ("depth", "hdr")
+    optional_reads = ("sky",)  # daylight on glass too
     writes = ("hdr",)
 
     def configure(self, settings, scene, frame) -> bool:
@@ -458,7 +478,9 @@ class BlendPass(RenderPass):
             order = back_to_front(scene, blended, eye.position)
             tgt.forward.use()
             tgt.forward.depth_mask = False
-            _draw_meshes(ctx, self.shaders, frame, eye, "forward.frag.glsl", order)
+            _draw_meshes(
+                ctx, self.shaders, frame, eye, "forward.frag.glsl", order, sky=res.get("sky")
+            )
             tgt.forward.depth_mask = True
         ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
         ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)

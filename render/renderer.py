@@ -18,8 +18,9 @@ import numpy as np
 from app.frame import FrameInput
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
-from app.scene import Scene
+from app.scene import Light, Scene
 from app.settings import Settings
+from app.sky import sun_light
 from app.tcr import finest_per_texture
 from render.ab_split import ABSplitPass, SplitFrame
 from render.ao import AmbientOcclusionPass
@@ -51,11 +52,13 @@ from render.passes import (
 )
 from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
+from render.sky import DaylightPass, SkyPass
 
 log = logging.getLogger(__name__)
 
 # The frame, in order. Adding a pass: its class (reads, writes, configure, execute) and a line.
 PASS_TYPES: tuple[type[RenderPass], ...] = (
+    DaylightPass,
     GBufferPass,
     LightCullPass,
     CpsLevelPass,
@@ -68,6 +71,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     CpsMaskPass,
     EmissivePass,
     ForwardPass,
+    SkyPass,
     BlendPass,
     ExposurePass,
     PresentPass,
@@ -90,6 +94,7 @@ class _Pass(Generic[P]):
 
 
 class Renderer:
+    daylight = _Pass[DaylightPass]()
     gbuffer = _Pass[GBufferPass]()
     light_cull = _Pass[LightCullPass]()
     cps_levels = _Pass[CpsLevelPass]()
@@ -103,6 +108,7 @@ class Renderer:
     emissive = _Pass[EmissivePass]()
     forward = _Pass[ForwardPass]()
     exposure_meter = _Pass[ExposurePass]()
+    sky = _Pass[SkyPass]()
     present = _Pass[PresentPass]()
     ab_split = _Pass[ABSplitPass]()
     overlay = _Pass[OverlayPass]()
@@ -151,6 +157,13 @@ class Renderer:
                 self.ctx, scene, self.settings.render.anisotropy, stream_in=stream_in
             )
             self._warm_up()
+
+    def frame_lights(self) -> list[Light]:
+        """The lights of a frame: the scene's lamps, then the sun (``kind="directional"``,
+        ``direction`` the way its light travels) while daylight is on and it is up."""
+        lights = list(self.gpu_scene.scene.lights) if self.gpu_scene is not None else []
+        sun = sun_light(self.settings.sky) if self.settings.sky.enabled else None
+        return lights + ([sun] if sun is not None else [])
 
     def set_photons(self, photons: PhotonMap | None) -> None:
         """The photon map for the current scene (traced by the host), or None: no indirect."""

@@ -61,6 +61,7 @@ from ui.photon_panel import PhotonPanel
 from ui.presenter import Presenter
 from ui.quality_panel import QualityPanel
 from ui.samples_menu import fill_samples_menu
+from ui.sky_panel import SkyPanel
 from ui.survey_runner import open_session_dialog
 from ui.tcr_panel import TcrPanel
 
@@ -123,8 +124,7 @@ class MainWindow(QMainWindow):
         self.view.heat_map_cleared.connect(
             self.quality_panel.heat_cleared, Qt.ConnectionType.QueuedConnection
         )
-        self.sky_panel = SettingsPanel(self.settings, ("sky",))
-        self.sky_panel.on_change = self._setting_changed
+        self.sky_panel = SkyPanel(self.settings, on_change=self._setting_changed)
         self.add_panel(self.sky_panel, "Sun and sky")
         self.add_panel(self.panel, "Settings")
         self.dock = QDockWidget("Evaluation", self)

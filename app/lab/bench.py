@@ -201,6 +201,9 @@ def bench(
     """
     scene, session, host, load_s = _open(scene_name, size, settings, path)
     assert session.path is not None
+    if settings.sky.enabled and host.renderer.gpu_scene is not None:
+        with host.ctx:  # daylight: the sky visibility baked before timing, not during it
+            host.renderer.daylight.wait_for_visibility(host.renderer.gpu_scene)
     stride = max(1, int(stride))
     total = frames if frames > 0 else -(-session.path.frame_count() // stride)
     reference = None

@@ -8,6 +8,9 @@ uniform mat4 u_inv_view_projection;
 uniform vec3 u_eye;
 uniform ivec2 u_size;
 uniform vec3 u_background;
+#ifdef SKY
+uniform sampler2D u_gb_sky;  // the share of the sky each pixel's surface sees
+#endif
 #ifdef INDIRECT_FUSED
 // The photon gather inside the lighting (photons.fused): the core and its GRID/KDTREE/HEAP
 // defines, the map bound by GpuPhotonMap.bind.
@@ -34,6 +37,9 @@ vec3 light_texel(ivec2 p) {
     vec3 P = world.xyz / world.w;
     vec3 V = safe_normalize(u_eye - P, vec3(0.0, 0.0, 1.0));
     vec3 N = safe_normalize(normal.xyz, vec3(0.0, 1.0, 0.0));
+#ifdef SKY
+    g_sky_visibility = texelFetch(u_gb_sky, p, 0).r;
+#endif
     vec3 c = shade(P, N, V, albedo.rgb, normal.w, albedo.a);
 #if defined(INDIRECT) || defined(INDIRECT_FUSED)
 #ifdef INDIRECT_FUSED

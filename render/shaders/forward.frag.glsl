@@ -13,6 +13,7 @@ void main() {
     use_ao_of(ivec2(gl_FragCoord.xy));
     vec3 V = safe_normalize(u_eye - v_world, vec3(0.0, 0.0, 1.0));
     g_material_occlusion = surface_occlusion();
+    g_sky_visibility = surface_sky();
     vec3 lit = shade(v_world, surface_normal(), V, surface_albedo(), surface_roughness(),
                      surface_metallic());
 #ifdef ALPHA_BLEND

@@ -6,9 +6,11 @@
 
 layout(location = 0) out vec4 out_albedo;
 layout(location = 1) out vec4 out_normal;
+layout(location = 2) out vec4 out_sky;
 
 void main() {
     alpha_mask();
     out_albedo = vec4(surface_albedo(), surface_metallic());
     out_normal = vec4(gbuffer_normal(surface_normal(), surface_occlusion()), surface_roughness());
+    out_sky = vec4(surface_sky());
 }

@@ -8,6 +8,7 @@ layout(location = 3) in vec3 in_color;
 layout(location = 4) in vec4 in_tangent;  // xyz along +u, w handedness
 out vec4 v_tangent;
 #endif
+layout(location = 5) in vec2 in_sky;  // sky visibility: front, back (app/sky_light.py)
 
 uniform mat4 u_view_projection;
 
@@ -19,6 +20,7 @@ out vec3 v_color;
 layout(location = 7) in vec2 in_ao;  // baked occlusion, front and back (render/ao.py)
 out vec2 v_ao;
 #endif
+out vec2 v_sky;
 
 void main() {
     v_world = in_position;
@@ -31,5 +33,6 @@ void main() {
 #ifdef AO_BAKED
     v_ao = in_ao;
 #endif
+    v_sky = in_sky;
     gl_Position = u_view_projection * vec4(in_position, 1.0);
 }

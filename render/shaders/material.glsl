@@ -22,6 +22,7 @@ in vec4 v_tangent;
 uniform sampler2D u_normal_map;  // linear, xyz * 2 - 1
 uniform float u_normal_scale;
 #endif
+in vec2 v_sky;
 
 uniform vec4 u_base_color;  // linear RGBA
 uniform float u_roughness;
@@ -129,4 +130,8 @@ vec3 surface_emissive() {
 #else
     return u_emissive;
 #endif
+}
+
+float surface_sky() {
+    return gl_FrontFacing ? v_sky.x : v_sky.y;  // the share of the sky the side seen sees
 }

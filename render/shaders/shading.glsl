@@ -27,6 +27,7 @@ void use_tile_of(ivec2 pixel) {
 #endif
 uniform float u_light_scale;  // brightness setting times exposure-independent scale
 uniform float u_ambient;
+#include "sky.glsl"
 
 // Smooth window: 1 near the light, exactly 0 at the range, so culling by range is exact.
 float range_window(float d2, float range) {
@@ -40,7 +41,11 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
     vec3 spec_color = mix(vec3(0.04), albedo, metallic);
     float shininess = exp2(10.0 * (1.0 - roughness) + 1.0);
     float spec_norm = (shininess + 8.0) / (8.0 * PI);
-    vec3 sum = u_ambient * albedo * material_occlusion() * ambient_occlusion();
+    // The ambient terms (even light and the sky through the windows), darkened in creases
+    // by the material's occlusion map and the ambient occlusion.
+    float occlusion = material_occlusion() * ambient_occlusion();
+    vec3 sum = (u_ambient * albedo + sky_ambient(N, albedo)) * occlusion;
+    sum += sun_light(N, V, diffuse_color, spec_color, shininess, spec_norm);
 #ifdef TILED_LIGHTS
     uint tile_count = texelFetch(u_tile_counts, g_tile, 0).r;
     bool every = tile_count == ALL_LIGHTS;

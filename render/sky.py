@@ -1,0 +1,216 @@
+"""Daylight on the GPU: the baked sky, the sun's uniforms, the sky visibility and the sky behind.
+
+Two passes. ``DaylightPass`` (first in the frame) re-bakes the sky on the CPU only when a
+``sky.*`` setting changes (``app.sky.bake_sky``: about 15 ms), starts the scene's sky
+visibility bake once per scene (``app.sky_light.VisibilityBake``, a background thread) and
+uploads it when ready, and hands the lighting a :class:`SkyFrame` as the ``sky`` resource:
+with it the lighting compiles its ``SKY`` variant (sky.glsl: the sun and the sky's diffuse
+light). ``SkyPass`` draws the sky where no geometry covers a pixel, after the opaque lighting,
+so windows open onto it (glass is drawn after it).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from app.scene import Light
+from app.settings import SkySettings
+from app.sky import SkyBake, bake_sky, north_east
+from app.sky_light import VisibilityBake
+from app.sky_model import SUN_HALF_ANGLE_DEG
+from render.gpu_scene import GpuScene
+from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
+from render.shaders import ShaderLibrary
+
+log = logging.getLogger(__name__)
+
+
+def sky_key(sky: SkySettings) -> tuple:
+    return (sky.time, sky.date, sky.latitude, sky.longitude, sky.north_deg, sky.image)
+
+
+@dataclass
+class SkyFrame:
+    """What the shaders need of the daylight this frame (the ``sky`` resource)."""
+
+    texture: moderngl.Texture
+    bake: SkyBake
+    north: np.ndarray
+    east: np.ndarray
+    scale: float  # the dimmer (render.brightness), applied like the lamps'
+
+    @property
+    def sun_to(self) -> tuple[float, float, float]:
+        sun = self.bake.sun
+        if sun is None:
+            return (0.0, -1.0, 0.0)
+        d = sun.direction
+        return (-d[0], -d[1], -d[2])
+
+    @property
+    def sun_radiance(self) -> tuple[float, float, float]:
+        sun = self.bake.sun
+        if sun is None:
+            return (0.0, 0.0, 0.0)
+        k = sun.intensity * self.scale
+        return (sun.color[0] * k, sun.color[1] * k, sun.color[2] * k)
+
+    def bind(self, prog: moderngl.Program | moderngl.ComputeShader) -> None:
+        """The sun and the sky's diffuse light for sky.glsl (in the SKY variants)."""
+        sh = (self.bake.sh * self.scale).astype(np.float32)
+        set_uniforms(
+            prog,
+            {},
+            optional={
+                "u_sun_to": self.sun_to,
+                "u_sun_radiance": self.sun_radiance,
+                "u_sky_sh": sh.tobytes(),
+            },
+        )
+
+
+class DaylightPass(RenderPass):
+    """The sky baked for the settings and the scene's sky visibility; writes ``sky``."""
+
+    name = "daylight"
+    writes = ("sky",)
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
+        self.sky: SkySettings = SkySettings()
+        self.brightness = 1.0
+        self.bake: SkyBake | None = None
+        self._key: tuple | None = None
+        self.texture: moderngl.Texture | None = None
+        self.visibility: VisibilityBake | None = None
+        self._visibility_scene: GpuScene | None = None
+        self.visibility_ready = False
+
+    def configure(self, settings, scene, frame) -> bool:
+        self.sky = settings.sky
+        self.brightness = float(settings.render.brightness)
+        return bool(settings.sky.enabled)
+
+    # -- the sky -------------------------------------------------------------------------------
+    def update_sky(self, sky: SkySettings) -> SkyBake:
+        """Bake the sky again when a ``sky.*`` setting changed (the sun moves with it)."""
+        key = sky_key(sky)
+        if self.bake is None or key != self._key:
+            self.bake = bake_sky(sky)
+            self._key = key
+            self._upload(self.bake.image)
+        return self.bake
+
+    def _upload(self, image: np.ndarray) -> None:
+        h, w = image.shape[:2]
+        if self.texture is None or self.texture.size != (w, h):
+            if self.texture is not None:
+                self.texture.release()
+            self.texture = self.ctx.texture((w, h), 3, dtype="f4")
+            self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self.texture.repeat_x = True
+            self.texture.repeat_y = False
+        self.texture.write(np.ascontiguousarray(image, np.float32).tobytes())
+
+    @property
+    def sun(self) -> Light | None:
+        """The sun of the last baked settings (None below the horizon or with daylight off)."""
+        return self.bake.sun if self.bake is not None and self.enabled else None
+
+    # -- the sky visibility --------------------------------------------------------------------
+    def update_visibility(self, scene: GpuScene) -> None:
+        """Start the scene's visibility bake once; upload its result when it is ready."""
+        if scene is not self._visibility_scene:
+            if self.visibility is not None:
+                self.visibility.cancel()
+            self._visibility_scene = scene
+            self.visibility_ready = False
+            self.visibility = VisibilityBake(scene.scene) if scene.meshes else None
+        bake = self.visibility
+        if bake is not None and not self.visibility_ready and bake.done:
+            if bake.result is not None:
+                scene.set_sky_visibility(bake.result)
+            self.visibility_ready = True
+
+    def wait_for_visibility(self, scene: GpuScene, timeout: float = 120.0) -> bool:
+        """Bake (or finish baking) ``scene``'s sky visibility now and upload it (tests, bench)."""
+        self.update_visibility(scene)
+        if self.visibility is not None:
+            self.visibility.wait(timeout)
+        self.update_visibility(scene)
+        return self.visibility_ready
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        bake = self.update_sky(self.sky)
+        self.update_visibility(frame.scene)
+        assert self.texture is not None
+        north, east = north_east(self.sky.north_deg)
+        res.put("sky", SkyFrame(self.texture, bake, north, east, self.brightness))
+
+    def release(self) -> None:
+        super().release()
+        if self.visibility is not None:
+            self.visibility.cancel()
+        if self.texture is not None:
+            self.texture.release()
+            self.texture = None
+
+
+class SkyPass(RenderPass):
+    """The sky where no geometry covers a pixel (depth still at the far plane)."""
+
+    name = "sky"
+    reads = ("depth", "hdr", "sky")
+    writes = ("hdr",)
+
+    def configure(self, settings, scene, frame) -> bool:
+        return bool(settings.sky.enabled)
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        sky: SkyFrame | None = res.get("sky")
+        if sky is None:  # the daylight pass failed this frame (logged once): keep the background
+            return
+        prog = self.shaders.program("sky.vert.glsl", "sky.frag.glsl")
+        ctx = self.ctx
+        ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)  # after a compute lighting
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+        ctx.depth_func = "<="
+        sun = sky.bake.sun
+        half = math.radians(SUN_HALF_ANGLE_DEG)
+        disc = (0.0, 0.0, 0.0)
+        if sun is not None:
+            # The disc's radiance: its illuminance over its solid angle (far above the range a
+            # half float holds; storable() clamps it).
+            k = sun.intensity * sky.scale / (math.pi * half * half)
+            disc = (sun.color[0] * k, sun.color[1] * k, sun.color[2] * k)
+        bind_texture(prog, "sky", sky.texture)
+        set_uniforms(
+            prog,
+            {"u_sky_north": tuple(sky.north), "u_sky_east": tuple(sky.east)},
+            optional={
+                "u_sun_to": sky.sun_to,
+                "u_sun_disc": disc,
+                "u_sun_cos": math.cos(half),
+                "u_sky_scale": sky.scale,
+            },
+        )
+        for eye, tgt in zip(frame.eyes, res.targets):
+            tgt.forward.use()
+            tgt.forward.depth_mask = False
+            set_uniforms(
+                prog,
+                {
+                    "u_inv_view_projection": eye.inverse_view_projection,
+                    "u_eye": tuple(eye.position),
+                },
+            )
+            self.fullscreen(prog)
+            tgt.forward.depth_mask = True
+        ctx.depth_func = "<"
+        ctx.disable(moderngl.DEPTH_TEST)
