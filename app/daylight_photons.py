@@ -76,8 +76,8 @@ GROUND_ALBEDO = 0.2
 #: Colours (linear RGB, luma 1): the sky bluish, the ground neutral.
 SKY_RGB = (0.80, 1.00, 1.50)
 GROUND_RGB = (1.0, 1.0, 1.0)
-#: Sky photons' first hits are stored (see the module docstring); sun photons' are not.
-STORE_SKY_FIRST_HIT = True
+#: Neither sky nor sun photons' first hits are stored: the renderer draws both direct terms.
+STORE_SKY_FIRST_HIT = False
 #: Portal cells along the bounding box's longest edge.
 PORTAL_CELLS = 64
 #: Points inside the room that probe for openings, and rays cast from each.

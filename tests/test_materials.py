@@ -78,6 +78,10 @@ def draw(host: OffscreenHost, scene: Scene, **settings) -> np.ndarray:
     for key in ("render.path", "render.lighting", "cps.mode", "render.ambient"):
         s.set(key, defaults.get(key))
     s.set("stereo.ipd_mm", 0.0)
+    # The material's colours as they are: no filmic curve desaturating a bright glow, and white
+    # at 1.2 cd/m2 (EV 0), close to the old curve's.
+    s.set("render.tone_mapping", "clamp")
+    s.set("render.exposure_ev", 0.0)
     for key, value in settings.items():
         s.set(key.replace("__", "."), value)
     host.set_scene(scene)
