@@ -47,11 +47,13 @@ from render.passes import (
 )
 from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
+from render.shadows import ShadowPass
 
 log = logging.getLogger(__name__)
 
 # The frame, in order. Adding a pass: its class (reads, writes, configure, execute) and a line.
 PASS_TYPES: tuple[type[RenderPass], ...] = (
+    ShadowPass,
     GBufferPass,
     LightCullPass,
     CpsLevelPass,
@@ -83,6 +85,7 @@ class _Pass(Generic[P]):
 
 
 class Renderer:
+    shadows = _Pass[ShadowPass]()
     gbuffer = _Pass[GBufferPass]()
     light_cull = _Pass[LightCullPass]()
     cps_levels = _Pass[CpsLevelPass]()
