@@ -170,7 +170,9 @@ def casts(mesh) -> bool:
 def frustum_planes(view_projection: np.ndarray) -> np.ndarray:
     """The six planes (a, b, c, d; inside: ax + by + cz + d >= 0, normalised) of a frustum."""
     m = view_projection
-    planes = np.array([m[3] + m[0], m[3] - m[0], m[3] + m[1], m[3] - m[1], m[3] + m[2], m[3] - m[2]])
+    planes = np.array(
+        [m[3] + m[0], m[3] - m[0], m[3] + m[1], m[3] - m[1], m[3] + m[2], m[3] - m[2]]
+    )
     return planes / np.linalg.norm(planes[:, :3], axis=1, keepdims=True)
 
 
@@ -317,9 +319,7 @@ class ShadowPass(RenderPass):
         wanted = self._within_tiles(wanted, lights, frame.eyes)
         wanted = fit_sizes(wanted, SHADOW_ATLAS * SHADOW_ATLAS)
         self._allocate(wanted, lights)
-        dirty = [
-            i for i in wanted if self.maps[i].drawn_key != (light_key(lights[i]), self._scene)
-        ]
+        dirty = [i for i in wanted if self.maps[i].drawn_key != (light_key(lights[i]), self._scene)]
         for i in dirty[: self.budget]:
             self._draw(frame, i, lights[i])
         self.pending = max(0, len(dirty) - self.budget)
@@ -355,7 +355,9 @@ class ShadowPass(RenderPass):
         for i in list(self.maps):  # resized or no longer a light: free the tiles
             if i >= len(lights) or (i in wanted and self.maps[i].size != wanted[i][0]):
                 self._free(i)
-        missing = [i for i in sorted(wanted, key=lambda k: (-wanted[k][0], k)) if i not in self.maps]
+        missing = [
+            i for i in sorted(wanted, key=lambda k: (-wanted[k][0], k)) if i not in self.maps
+        ]
         for i in missing:
             if not self._try_alloc(i, *wanted[i]):
                 # Out of room: lights out of view give theirs up first, then everything repacks
@@ -436,7 +438,11 @@ class ShadowPass(RenderPass):
             self.shadowed += 1
         head = np.array([self.mode, SHADOW_ATLAS, 0, 0], np.int32)
         self.block.write(
-            head.tobytes() + info.tobytes() + matrices.tobytes() + rects.tobytes() + texels.tobytes()
+            head.tobytes()
+            + info.tobytes()
+            + matrices.tobytes()
+            + rects.tobytes()
+            + texels.tobytes()
         )
 
     def release(self) -> None:
