@@ -110,6 +110,9 @@ class Scene:
     # origin to it: file position = scene position + origin_offset (shown, never rendered with).
     origin_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     warnings: list[str] = field(default_factory=list)
+    # The model's own north for daylight (degrees from its -Z, counter-clockwise seen from
+    # above, as sky.north_deg), or None: sky.north_deg decides.
+    north_deg: float | None = None
     # A RayCaster over triangles() with triangle indices as owners, left by the loader so the
     # session does not build embree's hierarchy a second time; None: build one when needed.
     ray_caster: Any = field(default=None, repr=False, compare=False)
