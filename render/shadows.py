@@ -268,6 +268,8 @@ class ShadowPass(RenderPass):
         self.space = BuddyAtlas(SHADOW_ATLAS)
         self.maps: dict[int, ShadowMap] = {}
         self._scene: tuple | None = None
+        self._scene_obj: GpuScene | None = None
+        self._generation = 0
         self._bounds: tuple[np.ndarray, float] = (np.zeros(3), 1.0)
         # Statistics: lights drawn (a point light's six faces count once), ever and last frame.
         self.renders = 0
@@ -299,9 +301,10 @@ class ShadowPass(RenderPass):
     def execute(self, frame: FrameContext, res: Resources) -> None:
         scene = frame.scene
         lights = scene.light_list
-        token = (id(scene), id(scene.scene))
-        if token != self._scene:  # new geometry: every map is stale
-            self._scene = token
+        if scene is not self._scene_obj:  # new geometry: every map is stale
+            self._scene_obj = scene  # held, so a new scene can never reuse its id
+            self._generation += 1
+            self._scene = (self._generation,)
             self._drop_all()
             self._bounds = scene_bounds(scene)
         self.updates = 0

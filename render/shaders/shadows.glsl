@@ -20,13 +20,29 @@ float spot_cone(int i, vec3 L) {
     return t * t;
 }
 
-float shadow_tap(vec2 uv, float depth, vec4 rect, float half_texel) {
-    return texture(u_shadow_atlas, vec3(clamp(uv, rect.xy + half_texel, rect.zw - half_texel),
-                                         depth));
+// A soft shadow's edge is about twice this wide on the surface it falls on (metres).
+const float SOFT_RADIUS_M = 0.025;
+const vec2 POISSON[8] = vec2[8](
+    vec2(-0.613, 0.617), vec2(0.170, -0.040), vec2(-0.299, -0.792), vec2(0.645, 0.493),
+    vec2(-0.651, -0.168), vec2(0.421, -0.689), vec2(-0.108, 0.357), vec2(0.892, -0.091));
+
+// One comparison of the world point W against the tile's depth (1 lit); bilinear unless hard.
+float shadow_tap(int tile, vec3 W, bool hard) {
+    vec4 c = shadow_matrix[tile] * vec4(W, 1.0);
+    if (c.w <= 0.0) return 1.0;
+    vec3 s = c.xyz / c.w;
+    vec4 rect = shadow_rect[tile];
+    if (s.z >= 1.0 || any(lessThan(s.xy, rect.xy)) || any(greaterThan(s.xy, rect.zw)))
+        return 1.0;  // beyond the map (the sun's map covers the scene only)
+    float t = shadow_texel[tile].x;
+    vec2 uv = hard ? (floor(s.xy / t) + 0.5) * t : s.xy;  // hard: one texel, no blending
+    return texture(u_shadow_atlas, vec3(clamp(uv, rect.xy + 0.5 * t, rect.zw - 0.5 * t), s.z));
 }
 
 // 1 lit, 0 in shadow. P is moved along its normal by about a texel of the map at P (normal
-// offset: no acne on flat floors), the depth pass adds a slope-scaled offset.
+// offset: no acne on flat floors), the depth pass adds a slope-scaled offset. Soft: eight taps
+// of a rotated Poisson disk on the receiving surface itself (so a slanted floor does not shadow
+// itself), each a bilinear comparison.
 float shadow_factor(int i, vec3 P, vec3 N, vec3 L, float dist) {
     if (shadow_mode.x == 0) return 1.0;
     ivec4 info = shadow_light[i];
@@ -41,25 +57,21 @@ float shadow_factor(int i, vec3 P, vec3 N, vec3 L, float dist) {
     }
     vec4 texel = shadow_texel[tile];
     float metres = texel.z > 0.5 ? texel.y * dist : texel.y;
-    float soft = shadow_mode.x == 2 ? 1.0 : 0.0;
     float ndl = clamp(dot(N, L), 0.0, 1.0);
-    vec3 Po = P + N * metres * (1.0 + soft) * (0.6 + sqrt(1.0 - ndl * ndl));
-    vec4 c = shadow_matrix[tile] * vec4(Po, 1.0);
-    if (c.w <= 0.0) return 1.0;
-    vec3 s = c.xyz / c.w;
-    vec4 rect = shadow_rect[tile];
-    if (s.z >= 1.0 || any(lessThan(s.xy, rect.xy)) || any(greaterThan(s.xy, rect.zw)))
-        return 1.0;  // beyond the map (the sun's map covers the scene only)
-    float t = texel.x;
-    if (shadow_mode.x == 1) {
-        // Hard: one texel's comparison (the centre of a texel: the linear filter adds nothing).
-        vec2 uv = (floor(s.xy / t) + 0.5) * t;
-        return shadow_tap(uv, s.z, rect, 0.5 * t);
+    vec3 Po = P + N * metres * (0.6 + 1.5 * sqrt(1.0 - ndl * ndl));
+    if (shadow_mode.x == 1) return shadow_tap(tile, Po, true);
+    vec3 T = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
+    vec3 B = cross(N, T);
+    // Interleaved gradient noise: a fixed rotation per surface point, no pattern in the edge.
+    float angle = 6.2831853 * fract(52.9829189 * fract(dot(P.xz * 173.0 + P.y * 97.0,
+                                                              vec2(0.06711056, 0.00583715))));
+    float ca = cos(angle), sa = sin(angle);
+    float r = max(SOFT_RADIUS_M, 1.5 * metres);
+    float sum = 0.0;
+    for (int k = 0; k < 8; ++k) {
+        vec2 o = POISSON[k];
+        o = vec2(ca * o.x - sa * o.y, sa * o.x + ca * o.y) * r;
+        sum += shadow_tap(tile, Po + T * o.x + B * o.y, false);
     }
-    // Soft: four bilinear comparisons a texel apart (PCF over 4 x 4 texels, tent-weighted).
-    float sum = shadow_tap(s.xy + vec2(-t, -t), s.z, rect, 0.5 * t)
-              + shadow_tap(s.xy + vec2(t, -t), s.z, rect, 0.5 * t)
-              + shadow_tap(s.xy + vec2(-t, t), s.z, rect, 0.5 * t)
-              + shadow_tap(s.xy + vec2(t, t), s.z, rect, 0.5 * t);
-    return 0.25 * sum;
+    return sum * 0.125;
 }
