@@ -33,7 +33,14 @@ MODES = {"off": 0, "hard": 1, "soft": 2}
 MIN_FACE, MAX_FACE = 256, 1024  # a lamp's tile edge, texels
 SUN_TILE = 2048
 NEAR_M = 0.05  # perspective maps' near plane
-SLOPE_OFFSET = (2.0, 4.0)  # glPolygonOffset(factor, units) while drawing depth
+SLOPE_OFFSET = (2.0, 4.0)
+# Soft shadows: the edge's half width on the receiving surface (metres); a lamp's shade is wide,
+# the sun's disc small (half a degree: about 1 cm at a metre or two from the blinds).
+SOFT_RADIUS_M = {
+    "point": 0.025,
+    "spot": 0.02,
+    "directional": 0.006,
+}  # glPolygonOffset(factor, units) while drawing depth
 # Cube faces: the direction each looks along and its up vector.
 CUBE_FACES = (
     ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
@@ -137,7 +144,7 @@ class ShadowMap:
     tiles: list[tuple[int, int]]  # atlas texel origin of each tile (6 for a point light)
     drawn_key: tuple | None = None  # the light key of what the tiles hold (None: nothing yet)
     matrices: list[np.ndarray] = field(default_factory=list)  # world -> atlas, per tile
-    texel: tuple[float, float, float] = (0.0, 0.0, 0.0)  # shadows.glsl's shadow_texel
+    texel: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # shadows.glsl's shadow_texel
 
 
 def light_key(light: Light) -> tuple:
@@ -217,7 +224,7 @@ def fit_sizes(wanted: dict[int, tuple[int, int]], capacity: int) -> dict[int, tu
 
 def map_matrices(
     light: Light, size: int, tiles: list[tuple[int, int]], bounds: tuple[np.ndarray, float]
-) -> tuple[list[np.ndarray], list[np.ndarray], tuple[float, float, float]]:
+) -> tuple[list[np.ndarray], list[np.ndarray], tuple[float, float, float, float]]:
     """Per tile the light's view-projection and world -> atlas matrix; the texel terms."""
     pos = np.asarray(light.position, np.float64)
     direction = np.asarray(light.direction, np.float64)
@@ -228,7 +235,7 @@ def map_matrices(
         centre, radius = bounds
         view = look_at(centre - direction * radius * 1.05, direction, np.array([0.0, 1.0, 0.0]))
         views.append(orthographic(radius, 0.0, 2.1 * radius) @ view)
-        texel = (1.0 / SHADOW_ATLAS, 2.0 * radius / size, 0.0)
+        texel = (1.0 / SHADOW_ATLAS, 2.0 * radius / size, 0.0, SOFT_RADIUS_M["directional"])
     else:
         far = max(light.range_m, NEAR_M * 2)
         if light.kind == "spot":
@@ -241,7 +248,7 @@ def map_matrices(
             faces = [(np.asarray(f), np.asarray(u)) for f, u in CUBE_FACES]
         proj = perspective(tan_half, NEAR_M, far)
         views = [proj @ look_at(pos, f, u) for f, u in faces]
-        texel = (1.0 / SHADOW_ATLAS, 2.0 * tan_half / size, 1.0)
+        texel = (1.0 / SHADOW_ATLAS, 2.0 * tan_half / size, 1.0, SOFT_RADIUS_M[light.kind])
     atlas = [to_tile(x, y, size) @ vp for vp, (x, y) in zip(views, tiles)]
     return views, atlas, texel
 
@@ -436,7 +443,7 @@ class ShadowPass(RenderPass):
             for (x, y), mat in zip(m.tiles, m.matrices):
                 matrices[tile] = mat.T  # std140 mat4: columns
                 rects[tile] = np.array([x, y, x + m.size, y + m.size]) / SHADOW_ATLAS
-                texels[tile, :3] = m.texel
+                texels[tile] = m.texel
                 tile += 1
             self.shadowed += 1
         head = np.array([self.mode, SHADOW_ATLAS, 0, 0], np.int32)

@@ -9,7 +9,8 @@ layout(std140, binding = 1) uniform Shadows {
     mat4 shadow_matrix[MAX_SHADOW_TILES];   // world -> atlas (u, v, depth) after the divide
     vec4 shadow_rect[MAX_SHADOW_TILES];     // the tile in atlas uv: min xy, max xy
     vec4 shadow_texel[MAX_SHADOW_TILES];    // x texel in uv; y texel in metres (per metre of
-                                            // distance when z = 1: perspective)
+                                            // distance when z = 1: perspective); w the soft
+                                            // edge's half width on the surface (metres)
 };
 layout(binding = TEXTURE_UNIT_SHADOW_ATLAS) uniform sampler2DShadow u_shadow_atlas;
 
@@ -20,8 +21,6 @@ float spot_cone(int i, vec3 L) {
     return t * t;
 }
 
-// A soft shadow's edge is about twice this wide on the surface it falls on (metres).
-const float SOFT_RADIUS_M = 0.025;
 const vec2 POISSON[8] = vec2[8](
     vec2(-0.613, 0.617), vec2(0.170, -0.040), vec2(-0.299, -0.792), vec2(0.645, 0.493),
     vec2(-0.651, -0.168), vec2(0.421, -0.689), vec2(-0.108, 0.357), vec2(0.892, -0.091));
@@ -66,7 +65,7 @@ float shadow_factor(int i, vec3 P, vec3 N, vec3 L, float dist) {
     float angle = 6.2831853 * fract(52.9829189 * fract(dot(P.xz * 173.0 + P.y * 97.0,
                                                               vec2(0.06711056, 0.00583715))));
     float ca = cos(angle), sa = sin(angle);
-    float r = max(SOFT_RADIUS_M, 1.5 * metres);
+    float r = max(texel.w, 1.5 * metres);
     float sum = 0.0;
     for (int k = 0; k < 8; ++k) {
         vec2 o = POISSON[k];
