@@ -9,7 +9,7 @@ Layout (Y up, metres, origin at the centre of the floor, x in [-4, 4], z in [-3,
 * south wall (z = +3): the door (x ~ 3) with the light switch beside it, a sideboard with a vase
   under the fifth painting, a plant in the south-west corner;
 * west wall (x = -4): a window, a real opening in the wall with venetian blinds whose tilted
-  slats stripe the floor with sunlight (the sky beyond is a glowing backdrop that casts no
+  slats stripe the floor with sunlight (the pane shows the sky: it glows and casts no
   shadow); the room's north (:data:`NORTH_DEG`) turns this wall to the sun at 10:00.
 
 Every piece is its own :class:`Mesh` with a meaningful name. Faces are wound counter-clockwise
@@ -530,14 +530,8 @@ def _wall_with_opening(b: MeshBuilder, corner: np.ndarray, right: np.ndarray) ->
 
 def _window(mats: _Materials) -> list[Mesh]:
     (z0, z1), (y0, y1) = WINDOW_Z, WINDOW_Y
-    sky = MeshBuilder()  # the sky beyond the opening: glows, casts no shadow
-    sky.quad((-HX - 1.5, -1.0, HZ + 2.0), (0, 0, -ROOM_Z - 4.0), (0, ROOM_H + 3.0, 0))
-    reveal = MeshBuilder()  # the opening's sides in the wall's thickness (15 cm, outwards)
-    t = 0.15
-    reveal.box((-HX - t / 2, y1 + 0.005, (z0 + z1) / 2), (t, 0.01, z1 - z0))
-    reveal.box((-HX - t / 2, y0 - 0.005, (z0 + z1) / 2), (t, 0.01, z1 - z0))
-    reveal.box((-HX - t / 2, (y0 + y1) / 2, z0 - 0.005), (t, y1 - y0, 0.01))
-    reveal.box((-HX - t / 2, (y0 + y1) / 2, z1 + 0.005), (t, y1 - y0, 0.01))
+    glass = MeshBuilder()  # the pane shows the sky: it glows and casts no shadow
+    glass.quad((-HX + 0.005, y0, z1), (0, 0, z0 - z1), (0, y1 - y0, 0))
     frame = MeshBuilder()
     d = 0.05
     frame.box((-HX + d / 2, y1 + 0.03, (z0 + z1) / 2), (d, 0.06, z1 - z0 + 0.12))
@@ -559,8 +553,7 @@ def _window(mats: _Materials) -> list[Mesh]:
         blinds.box((x + 0.036, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
         blinds.box((x - 0.036, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
     return [
-        sky.mesh("window", mats["window_sky"]),
-        reveal.mesh("window_reveal", mats["white_paint"]),
+        glass.mesh("window", mats["window_sky"]),
         frame.mesh("window_frame", mats["white_paint"]),
         blinds.mesh("blinds", mats["blinds"]),
     ]

@@ -6,8 +6,10 @@ fitted to the scene's bounds for the sun (a directional light). A tile's size fo
 size on screen (its range sphere's projected radius, 256 to 1024 texels a face; the sun 2048), so
 a lamp far away costs little. Maps are cached: the key is the light's parameters, its tile and the
 scene (a new ``GpuScene`` is new geometry); a static interior draws each map once and reuses it.
-At most ``render.shadow_updates_per_frame`` lights are redrawn per frame (the most prominent
-first); a light waiting for its turn keeps its last map, or has no shadow until its first.
+After a new scene's first frame (which draws every map), at most
+``render.shadow_updates_per_frame`` lights are redrawn per frame (the most prominent first); a
+light waiting for its turn keeps its last map, or has no shadow until its first. A light whose
+wanted tile size changes by one step (2x) keeps its tiles.
 
 The pass fills the ``Shadows`` uniform block (shadows.glsl, binding 1) and binds the atlas to its
 texture unit every frame, so every lighting path (deferred compute and fragment, forward, coarse
@@ -210,11 +212,15 @@ def wanted_size(light: Light, eyes: list[EyeView]) -> int:
     return int(min(max(size, MIN_FACE), MAX_FACE))
 
 
-def fit_sizes(wanted: dict[int, tuple[int, int]], capacity: int) -> dict[int, tuple[int, int]]:
-    """Halve the largest tiles until the lights' tiles fit ``capacity`` texels (size, faces)."""
+def fit_sizes(
+    wanted: dict[int, tuple[int, int]], capacity: int, current: dict[int, int] | None = None
+) -> dict[int, tuple[int, int]]:
+    """Halve the largest tiles until the lights' tiles fit ``capacity`` texels (size, faces);
+    among equals first those that would not keep their ``current`` size (no redraw for them)."""
     sizes = dict(wanted)
+    now = current or {}
     while sum(s * s * n for s, n in sizes.values()) > capacity:
-        i = max(sizes, key=lambda k: (sizes[k][0], -k))
+        i = max(sizes, key=lambda k: (sizes[k][0], now.get(k) != sizes[k][0], k))
         s, n = sizes[i]
         if s <= 64:
             break
@@ -308,7 +314,8 @@ class ShadowPass(RenderPass):
     def execute(self, frame: FrameContext, res: Resources) -> None:
         scene = frame.scene
         lights = scene.light_list
-        if scene is not self._scene_obj:  # new geometry: every map is stale
+        first = scene is not self._scene_obj
+        if first:  # new geometry: every map is stale
             self._scene_obj = scene  # held, so a new scene can never reuse its id
             self._generation += 1
             self._scene = (self._generation,)
@@ -326,13 +333,20 @@ class ShadowPass(RenderPass):
                     and reaches_view(light, frame.eyes)
                 ):
                     wanted[i] = (wanted_size(light, frame.eyes), faces_of(light))
+        for i, (size, faces) in wanted.items():  # hysteresis: a step of 2x keeps the tiles
+            if i in self.maps and size // 2 <= self.maps[i].size <= size * 2:
+                wanted[i] = (self.maps[i].size, faces)
         wanted = self._within_tiles(wanted, lights, frame.eyes)
-        wanted = fit_sizes(wanted, SHADOW_ATLAS * SHADOW_ATLAS)
+        current = {i: m.size for i, m in self.maps.items()}
+        wanted = fit_sizes(wanted, SHADOW_ATLAS * SHADOW_ATLAS, current)
         self._allocate(wanted, lights)
         dirty = [i for i in wanted if self.maps[i].drawn_key != (light_key(lights[i]), self._scene)]
-        for i in dirty[: self.budget]:
+        # A new scene's first frame draws every map (it stalls for its shaders anyway, and a
+        # still picture is then complete); later changes wait for the budget.
+        budget = len(dirty) if first else self.budget
+        for i in dirty[:budget]:
             self._draw(frame, i, lights[i])
-        self.pending = max(0, len(dirty) - self.budget)
+        self.pending = max(0, len(dirty) - budget)
         self._upload(wanted)
         self.block.bind_to_uniform_block(1)
         (self.atlas or self.dummy).use(TEXTURE_UNITS["shadow_atlas"])

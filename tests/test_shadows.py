@@ -206,11 +206,25 @@ def test_the_budget_limits_map_updates_per_frame(host):
     host.set_scene(scene)
     fi = frame(host, scene)
     maps = host.renderer.shadows
+    host.draw(fi)  # a new scene's first frame draws every map
+    assert (maps.updates, maps.shadowed, maps.pending) == (6, 6, 0)
+    moved = [
+        dataclasses.replace(light, position=(light.position[0], 2.3, light.position[2]))
+        for light in lights
+    ]
+    with host.ctx:
+        host.renderer.gpu_scene.set_lights(moved)
     drawn = []
     for _ in range(4):
         host.draw(fi)
         drawn.append((maps.updates, maps.shadowed, maps.pending))
-    assert drawn == [(2, 2, 4), (2, 4, 2), (2, 6, 0), (0, 6, 0)]
+    # Two redraws a frame; the lights waiting keep their last shadows meanwhile.
+    assert drawn == [(2, 6, 4), (2, 6, 2), (2, 6, 0), (0, 6, 0)]
+    with host.ctx:  # a light switched on later waits for its turn, without a shadow
+        host.renderer.gpu_scene.set_lights([*moved, Light((1.0, 2.0, 3.0), (1, 1, 1), 5.0, 8.0)])
+    host.settings.set("render.shadow_updates_per_frame", 1)
+    host.draw(fi)
+    assert (maps.updates, maps.shadowed, maps.pending) == (1, 7, 0)
     assert maps.memory_bytes > 0
 
 
