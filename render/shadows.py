@@ -280,6 +280,7 @@ class ShadowPass(RenderPass):
         self.fbo: moderngl.Framebuffer | None = None
         self.space = BuddyAtlas(SHADOW_ATLAS)
         self.maps: dict[int, ShadowMap] = {}
+        self.shaders.variant["SHADOW_FILTER"] = self.mode  # the default, for the warm-up
         self._scene: tuple | None = None
         self._scene_obj: GpuScene | None = None
         self._generation = 0
@@ -294,6 +295,9 @@ class ShadowPass(RenderPass):
     def configure(self, settings, scene, frame) -> bool:
         self.mode = MODES.get(settings.render.shadows, MODES["soft"])
         self.budget = max(1, int(settings.render.shadow_updates_per_frame))
+        # Off or no light that casts: the lighting compiles without the lookups.
+        needed = any(light.casts_shadows for light in scene.light_list)
+        self.shaders.variant["SHADOW_FILTER"] = self.mode if needed else 0
         return True  # also when off: the block then says so
 
     @property
@@ -349,6 +353,9 @@ class ShadowPass(RenderPass):
         self.pending = max(0, len(dirty) - budget)
         self._upload(wanted)
         self.block.bind_to_uniform_block(1)
+        if self.atlas is not None:  # hard: one texel per lookup; soft: bilinear comparisons
+            f = moderngl.NEAREST if self.mode == MODES["hard"] else moderngl.LINEAR
+            self.atlas.filter = (f, f)
         (self.atlas or self.dummy).use(TEXTURE_UNITS["shadow_atlas"])
 
     def _within_tiles(
