@@ -347,3 +347,25 @@ def test_the_10_oclock_sun_stripes_the_showroom_floor_through_the_blinds():
     above = line > 0.5 * (bright + dark)
     changes = int(np.sum(above[1:] != above[:-1]))
     assert changes >= 12, line  # at least six bright and six dark stripes in 60 cm
+
+
+def test_the_photon_tracer_emits_a_spot_within_its_cone_only():
+    """A spot in a grey box sends the power of its cone (glTF falloff) and no more; the sun's
+    photons are not traced (noted)."""
+    from app.photons import trace_photons
+    from tests.test_photons import HALF, _box
+
+    inner, outer = 20.0, 30.0
+    spot = Light((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, 1e4, "spot", (0.0, -1.0, 0.0), inner, outer)
+    sun = Light((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, kind="directional")
+    pm = trace_photons(_box(0.5, [spot, sun]), 2**15, seed=3, max_bounces=1)
+    # Expected first-hit flux on the floor (y = -HALF) through the cone, times the albedo.
+    rng = np.random.default_rng(7)
+    d = rng.normal(size=(400_000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    cos_o, cos_i = math.cos(math.radians(outer)), math.cos(math.radians(inner))
+    cone = np.clip((-d[:, 1] - cos_o) / (cos_i - cos_o), 0.0, 1.0) ** 2
+    dist2 = np.min(HALF / np.abs(d), axis=1) ** 2
+    expected = 4 * np.pi * spot.intensity * np.mean(cone * dist2 / (dist2 + 1)) * 0.5
+    assert pm.power.sum(axis=0, dtype=np.float64) == pytest.approx([expected] * 3, rel=0.05)
+    assert any("directional" in note for note in pm.notes)
