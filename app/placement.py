@@ -66,14 +66,11 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
         for m in scene.meshes:
             pos = np.asarray(m.positions, np.float64) * scale - offset
             meshes.append(replace(m, positions=pos.astype(np.float32)))
-    lights = [
-        replace(  # kind, direction, cone and shadows kept
-            light,
-            position=tuple(float(v) for v in np.asarray(light.position) * scale - offset),
-            range_m=light.range_m * scale,
-        )
-        for light in scene.lights
-    ]
+    lights = []
+    for light in scene.lights:
+        x, y, z = (float(v) for v in np.asarray(light.position) * scale - offset)
+        # kind, direction, cone and shadows kept
+        lights.append(replace(light, position=(x, y, z), range_m=light.range_m * scale))
     warnings = list(scene.warnings)
     if offset.any():
         dx, dy, dz = (0.0 - float(v) for v in offset)

@@ -329,12 +329,16 @@ def _sanitize_light(light: PointLight) -> PointLight | None:
     rng = _finite(light.range_m, 0.0)
     if rng <= 0.0:
         return None  # a light that reaches nothing costs time and gives no light
-    d = tuple(_finite(v, 0.0) for v in light.direction)
-    if not any(d):
-        d = (0.0, -1.0, 0.0)
+    dx, dy, dz = (_finite(v, 0.0) for v in light.direction)
+    d = (dx, dy, dz) if any((dx, dy, dz)) else (0.0, -1.0, 0.0)
     kind = light.kind if light.kind in ("point", "spot", "directional") else "point"
     return replace(  # kind, cone and shadows kept
-        light, color=color, intensity=intensity, range_m=min(rng, 1e5), direction=d, kind=kind
+        light,
+        color=(color[0], color[1], color[2]),
+        intensity=intensity,
+        range_m=min(rng, 1e5),
+        direction=d,
+        kind=kind,
     )
 
 
