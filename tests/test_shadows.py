@@ -272,6 +272,7 @@ def test_every_lighting_path_shows_the_shadow(host):
         {"render__path": "forward"},
         {"render__path": "deferred", "render__lighting": "fragment"},
         {"render__path": "deferred", "render__lighting": "compute", "cps__mode": "cps"},
+        {"render__path": "deferred", "render__lighting": "fragment", "cps__mode": "cps"},
     ):
         img, fi = hdr(host, box_scene([light]), "soft", **settings)
         assert at(img, fi, SHADOWED) < 0.05 * at(img, fi, LIT), settings
