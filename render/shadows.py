@@ -19,6 +19,7 @@ pixel shading) reads the same maps without binding anything itself.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import moderngl
@@ -315,6 +316,16 @@ class ShadowPass(RenderPass):
         }
 
     # -- per frame ---------------------------------------------------------------------------
+    def run(self, frame: FrameContext) -> None:
+        """As every pass, timed; llvmpipe's timer query around the depth draws into the atlas
+        reads 2^32 ns, so a frame that draws maps is timed on the clock (it waits for the GPU
+        then: rare, maps are cached)."""
+        start = time.perf_counter()
+        super().run(frame)
+        if self.updates:
+            self.ctx.finish()
+            self.last_ms = (time.perf_counter() - start) * 1000.0
+
     def execute(self, frame: FrameContext, res: Resources) -> None:
         scene = frame.scene
         lights = scene.light_list
