@@ -183,11 +183,13 @@ def gltf_wants_indirect(doc: dict[str, Any] | None) -> bool:
 
 
 def gltf_lights(doc: dict[str, Any], warnings: list[str]) -> list[PointLight]:
-    """Point and spot lights as point lights at their node's world position.
+    """Point, spot and directional lights at their node's world position and orientation.
 
-    glTF point intensity is in candela, which is what ``PointLight.intensity`` means (radiance
-    scale at 1 m). A glTF light without a range reaches everything; ours must stop somewhere, so
-    it stops where it has fallen to 1/1000 of its value at 1 m.
+    glTF point and spot intensity is in candela and a directional light's in lux, which is what
+    ``Light.intensity`` means for each kind. A spot and a directional light shine along their
+    node's -Z; a spot's cone angles are glTF's half angles (defaults 0 and 45 degrees). A glTF
+    light without a range reaches everything; ours must stop somewhere, so it stops where it has
+    fallen to 1/1000 of its value at 1 m (a directional light has no range).
     """
     ext = (doc.get("extensions") or {}).get("KHR_lights_punctual") or {}
     defs = ext.get("lights") or []
@@ -197,7 +199,6 @@ def gltf_lights(doc: dict[str, Any], warnings: list[str]) -> list[PointLight]:
     nodes = doc.get("nodes") or []
     lights: list[PointLight] = []
     skipped: dict[str, int] = {}
-    spots = 0
     for i, matrix in world.items():
         node = nodes[i]
         ref = ((node.get("extensions") or {}).get("KHR_lights_punctual") or {}).get("light")
@@ -208,28 +209,48 @@ def gltf_lights(doc: dict[str, Any], warnings: list[str]) -> list[PointLight]:
         except (IndexError, TypeError, ValueError):
             warnings.append(f"node {i}: refers to light {ref}, which does not exist")
             continue
+        if not isinstance(spec, dict):
+            warnings.append(f"node {i}: light {ref} is not a light description, ignored")
+            continue
         kind = str(spec.get("type", "point"))
-        if kind not in ("point", "spot"):
+        if kind not in ("point", "spot", "directional"):
             skipped[kind] = skipped.get(kind, 0) + 1
             continue
-        spots += kind == "spot"
         color = float_list(spec.get("color"), 3, 1.0)
         intensity = float_or(spec.get("intensity"), 1.0)
         rng = float_or(spec.get("range"), 0.0)
         if rng <= 0.0:
             rng = math.sqrt(max(intensity, 0.0) * 1000.0) + 1.0
         pos = matrix[:3, 3]
+        axis = -np.asarray(matrix[:3, 2], np.float64)  # the node's -Z in world axes
+        norm = float(np.linalg.norm(axis))
+        if not (norm > 1e-12 and math.isfinite(norm)):
+            warnings.append(f"node {i}: light has no direction (a zero scale), points down")
+            axis, norm = np.array([0.0, -1.0, 0.0]), 1.0
+        axis = axis / norm
+        inner, outer = 0.0, 45.0
+        if kind == "spot":
+            cone = as_dict(spec.get("spot"))
+            outer = math.degrees(float_or(cone.get("outerConeAngle"), math.pi / 4))
+            inner = math.degrees(float_or(cone.get("innerConeAngle"), 0.0))
+            if not 0.0 < outer <= 90.0 or not 0.0 <= inner < outer:
+                warnings.append(
+                    f"node {i}: spot cone {inner:.1f} to {outer:.1f} degrees is outside glTF's "
+                    "rules (0 <= inner < outer <= 90), clamped"
+                )
+                outer = min(max(outer, 0.1), 90.0)
+                inner = min(max(inner, 0.0), outer * 0.999)
         lights.append(
             PointLight(
                 (float(pos[0]), float(pos[1]), float(pos[2])),
                 (color[0], color[1], color[2]),
                 intensity,
                 rng,
+                kind=kind,
+                direction=(float(axis[0]), float(axis[1]), float(axis[2])),
+                inner_cone_deg=inner,
+                outer_cone_deg=outer,
             )
-        )
-    if spots:
-        warnings.append(
-            f"{spots} spot light{'s are' if spots != 1 else ' is'} shown as a point light (no cone)"
         )
     for kind, count in skipped.items():
         warnings.append(f"{count} {kind} light{'s' if count != 1 else ''} not supported, ignored")

@@ -20,6 +20,7 @@ from app.daylight_photons import Daylight, daylight_for
 from app.photon_map import PhotonMap
 from app.scene import Scene
 from app.settings import PhotonSettings, SkySettings
+from app.sky import scene_sky
 
 log = logging.getLogger(__name__)
 
@@ -68,12 +69,18 @@ class PhotonService:
         # (future, key, scene, cancel flag, start time) of the trace on the worker thread
         self._job: tuple[concurrent.futures.Future, tuple, Scene, list[bool], float] | None = None
 
-    def daylight(self) -> Daylight | None:
-        """The sun and sky that the photons get now (None: daylight off, or no sky given)."""
-        return daylight_for(self.sky()) if self.sky is not None else None
+    def daylight(self, scene: Scene | None = None) -> Daylight | None:
+        """The sun and sky that the photons of ``scene`` get now (None: daylight off, or no
+        sky given); a scene's own north turns them (``app.sky.scene_sky``)."""
+        if self.sky is None:
+            return None
+        sky = self.sky()
+        if sky is None or not sky.enabled:
+            return None
+        return daylight_for(scene_sky(sky, scene))
 
     def key_for(self, settings: PhotonSettings, scene: Scene | None) -> tuple:
-        return map_key(settings, scene, self.daylight())
+        return map_key(settings, scene, self.daylight(scene))
 
     def current(self, settings: PhotonSettings, scene: Scene | None) -> PhotonMap | None:
         """The map for these settings if it is already traced (never traces)."""
@@ -92,7 +99,7 @@ class PhotonService:
         if not wanted(settings, scene):
             return None
         assert scene is not None
-        daylight = self.daylight()
+        daylight = self.daylight(scene)
         key = map_key(settings, scene, daylight)
         if self.key != key:
             start = time.perf_counter()
@@ -165,7 +172,7 @@ class PhotonService:
             self.progress = fraction  # read by the host's poll; a float store is atomic
 
         # A copy: the settings may change while the worker reads them (a Daylight is frozen).
-        daylight = self.daylight()
+        daylight = self.daylight(scene)
         extra = {} if daylight is None else {"daylight": daylight}
         future = self._executor.submit(
             trace, copy.copy(settings), scene, progress, lambda: cancel[0], **extra

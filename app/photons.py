@@ -449,11 +449,15 @@ class _Sources:
     """Point lights (one source each), then all emissive triangles as one last source."""
 
     position: np.ndarray  # (P, 3) point-light positions
-    flux: np.ndarray  # (P, 3) total RGB power of each point light, 4 pi I color
+    flux: np.ndarray  # (P, 3) RGB power of each light's emission solid angle at full intensity
     reach: np.ndarray  # (P,) range in metres (inf allowed)
     area_tri: np.ndarray  # (E,) emissive triangle indices into the geometry
     area_cdf: np.ndarray  # (E,) cumulative area * luminance(L_e)
     power_luma: np.ndarray  # (P [+1],) luminance power per source: photons are shared by it
+    # Spots (P, 3) axis and (P, 2) cos(outer) and 1 / (cos inner - cos outer); a point light:
+    # axis +z, cos(outer) -1 (the whole sphere), scale 0 (no falloff).
+    axis: np.ndarray | None = None
+    cone: np.ndarray | None = None
 
     @property
     def n_point(self) -> int:
@@ -472,12 +476,22 @@ class _Sources:
         pt = src < self.n_point
         if pt.any():
             s = src[pt]
-            z = 1.0 - 2.0 * u[pt, 0]
+            n_pt = int(np.count_nonzero(pt))
+            axis = self.axis[s] if self.axis is not None else np.tile([0.0, 0.0, 1.0], (n_pt, 1))
+            cone = self.cone[s] if self.cone is not None else np.tile([-1.0, 0.0], (n_pt, 1))
+            # Uniform over the emission cone (a point light's: the sphere), weighted by the
+            # spot's smooth falloff (glTF's, as the renderer's).
+            z = 1.0 - u[pt, 0] * (1.0 - cone[:, 0])
             r = np.sqrt(np.clip(1.0 - z * z, 0.0, None))
             phi = 2.0 * np.pi * u[pt, 1]
-            d[pt] = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+            x, y = r * np.cos(phi), r * np.sin(phi)
+            t_axis, s_axis = _basis(axis)
+            d[pt] = t_axis * x[:, None] + s_axis * y[:, None] + axis * z[:, None]
+            falloff = np.where(
+                cone[:, 1] > 0.0, np.clip((z - cone[:, 0]) * cone[:, 1], 0.0, 1.0) ** 2, 1.0
+            )
             o[pt] = self.position[s]
-            flux[pt] = self.flux[s] / per_source[s][:, None]
+            flux[pt] = self.flux[s] * (falloff / per_source[s])[:, None]
             reach[pt] = self.reach[s]
         ar = ~pt
         if ar.any():
@@ -504,8 +518,18 @@ class _Sources:
         return o, d, flux, reach
 
 
+def _basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing unit normals ``n`` (N, 3) (Duff et al. 2017; +z: x, y)."""
+    sign = np.where(n[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    t = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], axis=1)
+    s = np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
+    return t, s
+
+
 def _light_sources(scene: Scene, geo: _Geometry, notes: list[str]) -> _Sources | None:
-    pos, flux, reach = [], [], []
+    pos, flux, reach, axes, cones = [], [], [], [], []
     for i, light in enumerate(scene.lights):
         if light.kind == "directional":
             continue  # a parallel beam through the openings (app.daylight_photons)
@@ -521,9 +545,20 @@ def _light_sources(scene: Scene, geo: _Geometry, notes: list[str]) -> _Sources |
         c = np.clip(c, 0.0, None)
         if inten <= 0.0 or rng_m <= 0.0 or float(c @ LUMA) <= 0.0:
             continue  # emits nothing: not worth a note (a light switched off)
+        axis, cone = np.array([0.0, 0.0, 1.0]), np.array([-1.0, 0.0])
+        if light.kind == "spot":
+            a = np.asarray(light.direction, np.float64)
+            norm = float(np.linalg.norm(a))
+            axis = a / norm if norm > 1e-12 and math.isfinite(norm) else np.array([0.0, -1.0, 0.0])
+            outer = math.radians(min(max(float(light.outer_cone_deg), 0.01), 90.0))
+            inner = min(max(math.radians(float(light.inner_cone_deg)), 0.0), outer)
+            cos_o = math.cos(outer)
+            cone = np.array([cos_o, 1.0 / max(1e-3, math.cos(inner) - cos_o)])
         pos.append(p)
-        flux.append(4.0 * np.pi * inten * c)
+        flux.append(2.0 * np.pi * (1.0 - cone[0]) * inten * c)  # the cone's solid angle
         reach.append(rng_m)
+        axes.append(axis)
+        cones.append(cone)
     weight = geo.area * (geo.emissive @ LUMA) if len(geo.area) else np.zeros(0)
     weight = np.where(np.isfinite(weight), weight, 0.0)
     area_tri = np.flatnonzero(weight > 0.0)
@@ -541,6 +576,8 @@ def _light_sources(scene: Scene, geo: _Geometry, notes: list[str]) -> _Sources |
         area_tri,
         area_cdf,
         np.asarray(luma),
+        np.reshape(axes, (-1, 3)),
+        np.reshape(cones, (-1, 2)),
     )
 
 

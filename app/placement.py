@@ -17,7 +17,7 @@ import numpy as np
 from app.default_lights import safe_default_lights
 from app.progress import Progress
 from app.raycast import RayCaster
-from app.scene import PointLight, Scene
+from app.scene import Scene
 from app.spawn import SpawnResult, interior_spawn, safe_find_spawn
 
 log = logging.getLogger(__name__)
@@ -66,15 +66,11 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
         for m in scene.meshes:
             pos = np.asarray(m.positions, np.float64) * scale - offset
             meshes.append(replace(m, positions=pos.astype(np.float32)))
-    lights = [
-        PointLight(
-            tuple(float(v) for v in np.asarray(light.position) * scale - offset),  # type: ignore[arg-type]
-            light.color,
-            light.intensity,
-            light.range_m * scale,
-        )
-        for light in scene.lights
-    ]
+    lights = []
+    for light in scene.lights:
+        x, y, z = (float(v) for v in np.asarray(light.position) * scale - offset)
+        # kind, direction, cone and shadows kept
+        lights.append(replace(light, position=(x, y, z), range_m=light.range_m * scale))
     warnings = list(scene.warnings)
     if offset.any():
         dx, dy, dz = (0.0 - float(v) for v in offset)

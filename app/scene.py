@@ -130,6 +130,9 @@ class Scene:
     # origin to it: file position = scene position + origin_offset (shown, never rendered with).
     origin_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     warnings: list[str] = field(default_factory=list)
+    # The model's own north for daylight (degrees from its -Z, counter-clockwise seen from
+    # above, as sky.north_deg), or None: sky.north_deg decides.
+    north_deg: float | None = None
     # A RayCaster over triangles() with triangle indices as owners, left by the loader so the
     # session does not build embree's hierarchy a second time; None: build one when needed.
     ray_caster: Any = field(default=None, repr=False, compare=False)
@@ -373,7 +376,17 @@ def _sanitize_light(light: PointLight) -> PointLight | None:
     rng = _finite(light.range_m, 0.0)
     if rng <= 0.0:
         return None  # a light that reaches nothing costs time and gives no light
-    return PointLight(light.position, color, intensity, min(rng, 1e5))  # type: ignore[arg-type]
+    dx, dy, dz = (_finite(v, 0.0) for v in light.direction)
+    d = (dx, dy, dz) if any((dx, dy, dz)) else (0.0, -1.0, 0.0)
+    kind = light.kind if light.kind in ("point", "spot", "directional") else "point"
+    return replace(  # kind, cone and shadows kept
+        light,
+        color=(color[0], color[1], color[2]),
+        intensity=intensity,
+        range_m=min(rng, 1e5),
+        direction=d,
+        kind=kind,
+    )
 
 
 def vertex_normals(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:

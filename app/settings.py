@@ -403,6 +403,23 @@ class RenderSettings:
         "lights that reach it: faster, the same picture.",
         label="Skip lights out of reach",
     )
+    shadows: str = _opt(
+        "soft",
+        "Whether lamps and the sun cast shadows, and whether their edges are crisp or soft.",
+        label="Shadows",
+        choices=("off", "hard", "soft"),
+        choice_labels={"off": "Off", "hard": "Hard edges", "soft": "Soft edges"},
+    )
+    shadow_updates_per_frame: int = _opt(
+        2,
+        "How many lights may redraw their shadows in one frame after something moved; the "
+        "others keep their last shadows a little longer, so the frame rate holds.",
+        label="Shadow redraws per frame",
+        unit="lights",
+        lo=1,
+        hi=64,
+        step=1.0,
+    )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(
         1.0,
@@ -953,8 +970,8 @@ class SkySettings:
     )
     north_deg: float = _opt(
         0.0,
-        "Which way north lies in the model: the angle from the model's -Z axis, "
-        "counter-clockwise seen from above.",
+        "Which way north lies in the model: the angle from the model's own north (the -Z "
+        "axis for a model file, which does not say), counter-clockwise seen from above.",
         label="North",
         unit="°",
         lo=-360.0,

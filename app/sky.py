@@ -9,6 +9,7 @@ the model's -Z turned counter-clockwise (seen from above) by ``sky.north_deg``.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import logging
 import math
@@ -261,3 +262,13 @@ def read_radiance_hdr(path: str) -> np.ndarray:
     e = rgbe[..., 3].astype(np.int32)
     scale = np.where(e > 0, np.ldexp(1.0, e - 136), 0.0).astype(np.float32)
     return rgbe[..., :3].astype(np.float32) * scale[..., None]
+
+
+def scene_sky(sky: SkySettings, scene: object) -> SkySettings:
+    """The sky settings as they apply to ``scene``: a scene that knows its north
+    (``Scene.north_deg``, the showroom's) is turned by it, and ``sky.north_deg`` turns it
+    further; a model file that says nothing has north along -Z turned by the setting alone."""
+    own = getattr(scene, "north_deg", None)
+    if own is None or not math.isfinite(float(own)) or float(own) == 0.0:
+        return sky
+    return dataclasses.replace(sky, north_deg=float(own) + float(sky.north_deg))

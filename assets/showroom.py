@@ -8,7 +8,9 @@ Layout (Y up, metres, origin at the centre of the floor, x in [-4, 4], z in [-3,
   a wooden chair facing the sofa;
 * south wall (z = +3): the door (x ~ 3) with the light switch beside it, a sideboard with a vase
   under the fifth painting, a plant in the south-west corner;
-* west wall (x = -4): a window with venetian blinds.
+* west wall (x = -4): a window, a real opening in the wall with venetian blinds whose tilted
+  slats stripe the floor with sunlight (the pane shows the sky: it glows and casts no
+  shadow); the room's north (:data:`NORTH_DEG`) turns this wall to the sun at 10:00.
 
 Every piece is its own :class:`Mesh` with a meaningful name. Faces are wound counter-clockwise
 seen from the side their normal points to; the room's shell faces into the room.
@@ -40,6 +42,13 @@ WARM_WHITE = (1.0, 0.87, 0.72)
 FOUR_LIGHT_INTENSITY = 6.5  # radiance scale at 1 m of each of the four ceiling lights
 FOUR_LIGHT_RANGE_M = 6.0
 GRID_LIGHT_RANGE_M = 2.5
+# The room's north for daylight (Scene.north_deg, as sky.north_deg): the window wall faces
+# west-south-west of the sun's 10:00 bearing on the default date and site, so the morning sun
+# falls through the blinds onto the floor inside.
+NORTH_DEG = 200.0
+# The window opening in the west wall: z and height ranges (m).
+WINDOW_Z = (-0.5, 1.7)
+WINDOW_Y = (0.9, 2.3)
 
 Vec = Sequence[float] | np.ndarray  # a 3-vector (or a uv pair) as a tuple or an array
 _QUAD_TRIS = np.array([[0, 1, 2], [0, 2, 3]], np.int64)  # a quad's corners as two triangles
@@ -411,7 +420,10 @@ def _shell(mats: _Materials) -> list[Mesh]:
     ]
     for name, corner, right, length in walls:
         b = MeshBuilder()
-        b.quad(corner, right * length, ey * ROOM_H, WALL_TILE_M)
+        if name == "wall_west":  # around the window's opening
+            _wall_with_opening(b, np.asarray(corner, np.float64), right)
+        else:
+            b.quad(corner, right * length, ey * ROOM_H, WALL_TILE_M)
         meshes.append(b.mesh(name, mats["wallpaper"]))
     b = MeshBuilder()  # skirting boards, 10 cm high, 1.5 cm deep
     t, h = 0.015, 0.10
@@ -499,9 +511,26 @@ def _door_and_switch(mats: _Materials) -> list[Mesh]:
     ]
 
 
+def _wall_with_opening(b: MeshBuilder, corner: np.ndarray, right: np.ndarray) -> None:
+    """The west wall as four pieces around the window (wallpaper continuous across them)."""
+    ey = np.array([0.0, 1.0, 0.0])
+    a0, a1 = HZ - WINDOW_Z[1], HZ - WINDOW_Z[0]  # the opening along the wall, from its corner
+    y0, y1 = WINDOW_Y
+    pieces = [(0.0, ROOM_Z, 0.0, y0), (0.0, ROOM_Z, y1, ROOM_H), (0.0, a0, y0, y1)]
+    pieces.append((a1, ROOM_Z, y0, y1))
+    for s0, s1, t0, t1 in pieces:
+        b.quad(
+            corner + right * s0 + ey * t0,
+            right * (s1 - s0),
+            ey * (t1 - t0),
+            WALL_TILE_M,
+            (s0 / WALL_TILE_M, t0 / WALL_TILE_M),
+        )
+
+
 def _window(mats: _Materials) -> list[Mesh]:
-    z0, z1, y0, y1 = -0.5, 1.7, 0.9, 2.3
-    glass = MeshBuilder()
+    (z0, z1), (y0, y1) = WINDOW_Z, WINDOW_Y
+    glass = MeshBuilder()  # the pane shows the sky: it glows and casts no shadow
     glass.quad((-HX + 0.005, y0, z1), (0, 0, z0 - z1), (0, y1 - y0, 0))
     frame = MeshBuilder()
     d = 0.05
@@ -510,19 +539,19 @@ def _window(mats: _Materials) -> list[Mesh]:
     frame.box((-HX + d / 2, (y0 + y1) / 2, z0 - 0.03), (d, y1 - y0, 0.06))
     frame.box((-HX + d / 2, (y0 + y1) / 2, z1 + 0.03), (d, y1 - y0, 0.06))
     frame.box((-HX + 0.02, (y0 + y1) / 2, (z0 + z1) / 2), (0.04, y1 - y0, 0.05))  # mullion
-    blinds = MeshBuilder()
+    blinds = MeshBuilder()  # 9 cm slats 8 cm apart, tilted open 40 degrees (room side down)
     x = -HX + 0.075
     width = z1 - z0 - 0.04
     zc = (z0 + z1) / 2
-    blinds.box((x, y1 - 0.03, zc), (0.06, 0.05, width))  # head rail
-    slats = 26
+    blinds.box((x, y1 - 0.03, zc), (0.08, 0.05, width))  # head rail
+    slats, pitch = 16, 0.08
     for i in range(slats):
-        y = y1 - 0.1 - i * 0.048
-        blinds.box((x, y, zc), (0.048, 0.003, width), rot=rot_z(35.0))
-    blinds.box((x, y1 - 0.1 - slats * 0.048, zc), (0.05, 0.02, width))  # bottom rail
+        y = y1 - 0.1 - i * pitch
+        blinds.box((x, y, zc), (0.09, 0.003, width), rot=rot_z(-40.0))
+    blinds.box((x, y1 - 0.1 - slats * pitch, zc), (0.07, 0.02, width))  # bottom rail
     for zl in (z0 + 0.35, zc, z1 - 0.35):  # ladder tapes
-        blinds.box((x + 0.026, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
-        blinds.box((x - 0.026, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
+        blinds.box((x + 0.036, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
+        blinds.box((x - 0.036, (y1 + y0) / 2 - 0.05, zl), (0.003, y1 - y0 - 0.1, 0.012))
     return [
         glass.mesh("window", mats["window_sky"]),
         frame.mesh("window_frame", mats["white_paint"]),
@@ -799,6 +828,7 @@ def build_showroom(lights: int = 4) -> Scene:
         Viewpoint(SPAWN.position, SPAWN.yaw_deg, SPAWN.pitch_deg),
         floor_y=0.0,
         source="built-in",
+        north_deg=NORTH_DEG,
     )
     return scene.sanitized()
 

@@ -9,8 +9,13 @@ from __future__ import annotations
 
 from app.cps import MAX_LEVEL
 
-# Lights: the uniform block holds this many (std140: 32 KiB of the 64 KiB block limit).
+# Lights: the uniform block holds this many (std140, three vec4 each: 48 KiB of the 64 KiB
+# block limit).
 MAX_LIGHTS = 1024
+# Shadow maps (render/shadows.py): tiles of one depth atlas, SHADOW_ATLAS texels square; a
+# point light takes six tiles (cube faces), a spot or the sun one.
+MAX_SHADOW_TILES = 64
+SHADOW_ATLAS = 4096
 # Tiled light culling: tile edge in pixels, list length per tile, and the count that marks an
 # overflowing tile ("evaluate every light").
 LIGHT_TILE = 16
@@ -100,6 +105,7 @@ TEXTURE_UNITS = {
             "ao_raw",
             "sky",  # the baked sky (render.sky)
             "gb_sky",  # the G-buffer's sky visibility
+            "shadow_atlas",  # the shadow maps' depth atlas (bound once per frame)
         )
     )
 }
@@ -124,5 +130,7 @@ SHADER_DEFINES: dict[str, object] = {
     "PM_GROUP": f"{PM_GROUP}u",
     "PM_MAX_K": PM_MAX_K,
     "PM_NO_WINNER": f"0x{PM_NO_WINNER:X}u",
+    "MAX_SHADOW_TILES": MAX_SHADOW_TILES,
+    "TEXTURE_UNIT_SHADOW_ATLAS": TEXTURE_UNITS["shadow_atlas"],
     **{f"IMAGE_UNIT_{k.upper()}": v for k, v in IMAGE_UNITS.items()},
 }

@@ -15,13 +15,14 @@ textures (units from ``render.constants.TEXTURE_UNITS``).
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
 from app.ao_bake import BackgroundBake
-from app.scene import Material, Scene, Texture
+from app.scene import Light, Material, Scene, Texture
 from app.tangents import generate_tangents
 from render.constants import MAX_LIGHTS
 from render.texture_stream import TextureStreamer
@@ -137,19 +138,29 @@ class GpuScene:
         self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
         self.ao_bake: BackgroundBake | None = None  # started when AO first draws, if needed
-        self.lights = light_buffer_data(scene)
-        if len(self.lights) > MAX_LIGHTS:
+        self.light_list: list[Light] = []
+        self.lights = np.zeros((0, 12), np.float32)
+        self.light_buffer = ctx.buffer(reserve=3 * MAX_LIGHTS * 16)
+        self.light_version = 0  # counts set_lights calls (the shadow maps' cache watches it)
+        self.set_lights(scene.lights)
+
+    def set_lights(self, lights: list[Light]) -> None:
+        """The lights the frame draws (the scene's, or those plus the sun): the uniform block
+        and ``light_list`` (index i of both is the same light), without re-uploading geometry."""
+        if len(lights) > MAX_LIGHTS:
             log.warning(
                 "%s has %d lights; only the first %d are drawn",
-                scene.name,
-                len(self.lights),
+                self.scene.name,
+                len(lights),
                 MAX_LIGHTS,
             )
-            self.lights = self.lights[:MAX_LIGHTS]
-        block = np.zeros((2, MAX_LIGHTS, 4), np.float32)  # std140: positions, then colours
-        block[0, : len(self.lights)] = self.lights[:, :4]
-        block[1, : len(self.lights)] = self.lights[:, 4:]
-        self.light_buffer = ctx.buffer(block.tobytes())
+        self.light_list = list(lights[:MAX_LIGHTS])
+        self.lights = light_rows(self.light_list)
+        block = np.zeros((3, MAX_LIGHTS, 4), np.float32)  # std140: the block's three arrays
+        for k in range(3):
+            block[k, : len(self.lights)] = self.lights[:, 4 * k : 4 * k + 4]
+        self.light_buffer.write(block.tobytes())
+        self.light_version += 1
 
     def _material_maps(self, mat: Material) -> dict[str, moderngl.Texture]:
         out = {}
@@ -305,8 +316,40 @@ class GpuScene:
 _PLACEHOLDER = np.full((1, 1, 4), 255, np.uint8)
 
 
+def light_rows(lights: list[Light]) -> np.ndarray:
+    """One row of 12 floats per light, the uniform block's three vec4 (shading.glsl):
+    position and range (range -1: directional), colour and intensity, and the cone: the
+    direction scaled by 1 / (cos inner - cos outer) and the offset -cos outer times that scale
+    (glTF's smooth spot falloff; a point light (0, 0, 0, 1) is lit all round, a directional
+    light's is its unit direction)."""
+    rows = []
+    for light in lights:
+        d = np.asarray(light.direction, np.float64)
+        n = float(np.linalg.norm(d))
+        d = d / n if n > 1e-12 and np.isfinite(n) else np.array([0.0, -1.0, 0.0])
+        if light.kind == "directional":
+            cone = (*d, 1.0)
+            rng = -1.0
+        elif light.kind == "spot":
+            cos_o, cos_i = spot_cosines(light)
+            scale = 1.0 / max(1e-3, cos_i - cos_o)
+            cone = (*(d * scale), -cos_o * scale)
+            rng = light.range_m
+        else:
+            cone = (0.0, 0.0, 0.0, 1.0)
+            rng = light.range_m
+        rows.append((*light.position, rng, *light.color, light.intensity, *cone))
+    return np.asarray(rows, np.float32).reshape(-1, 12)
+
+
+def spot_cosines(light: Light) -> tuple[float, float]:
+    """cos(outer), cos(inner) of a spot's half angles (outer within 0..90 degrees, inner at
+    most outer)."""
+    outer = min(max(float(light.outer_cone_deg), 0.01), 90.0)
+    inner = min(max(float(light.inner_cone_deg), 0.0), outer)
+    return math.cos(math.radians(outer)), math.cos(math.radians(inner))
+
+
 def light_buffer_data(scene: Scene) -> np.ndarray:
-    rows = [
-        (*light.position, light.range_m, *light.color, light.intensity) for light in scene.lights
-    ]
-    return np.asarray(rows, np.float32).reshape(-1, 8)
+    """The scene's light rows (see :func:`light_rows`)."""
+    return light_rows(list(scene.lights))

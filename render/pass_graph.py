@@ -32,6 +32,7 @@ from render.shaders import ShaderLibrary
 
 # The named resources passes hand each other (the contract's vocabulary).
 RESOURCES = {
+    "shadow_maps": "the shadow maps' atlas and their uniform block (bound for every lighting)",
     "depth": "per eye: G-buffer / forward depth",
     "normal": "per eye: world normal + roughness",
     "albedo": "per eye: albedo + metallic",

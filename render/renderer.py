@@ -20,7 +20,7 @@ from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.scene import Light, Scene
 from app.settings import Settings
-from app.sky import sun_light
+from app.sky import scene_sky, sun_light
 from app.tcr import finest_per_texture
 from render.ab_split import ABSplitPass, SplitFrame
 from render.ao import AmbientOcclusionPass
@@ -52,13 +52,15 @@ from render.passes import (
 )
 from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
-from render.sky import DaylightPass, SkyPass
+from render.shadows import ShadowPass
+from render.sky import DaylightPass, SkyPass, sky_key
 
 log = logging.getLogger(__name__)
 
 # The frame, in order. Adding a pass: its class (reads, writes, configure, execute) and a line.
 PASS_TYPES: tuple[type[RenderPass], ...] = (
     DaylightPass,
+    ShadowPass,
     GBufferPass,
     LightCullPass,
     CpsLevelPass,
@@ -95,6 +97,7 @@ class _Pass(Generic[P]):
 
 class Renderer:
     daylight = _Pass[DaylightPass]()
+    shadows = _Pass[ShadowPass]()
     gbuffer = _Pass[GBufferPass]()
     light_cull = _Pass[LightCullPass]()
     cps_levels = _Pass[CpsLevelPass]()
@@ -129,6 +132,8 @@ class Renderer:
         self.ids = ObjectIdPass(ctx, self.shaders, self.resources)  # on request only
         self._checked: set[tuple] = set()  # configurations whose pass list was checked
         self.gpu_scene: GpuScene | None = None
+        self._sun: Light | None = None
+        self._sun_key: tuple | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
@@ -161,9 +166,26 @@ class Renderer:
     def frame_lights(self) -> list[Light]:
         """The lights of a frame: the scene's lamps, then the sun (``kind="directional"``,
         ``direction`` the way its light travels) while daylight is on and it is up."""
-        lights = list(self.gpu_scene.scene.lights) if self.gpu_scene is not None else []
-        sun = sun_light(self.settings.sky) if self.settings.sky.enabled else None
-        return lights + ([sun] if sun is not None else [])
+        if self.gpu_scene is None:
+            return []
+        lights = list(self.gpu_scene.scene.lights)
+        sky = self.settings.sky
+        if not sky.enabled:
+            return lights
+        sky = scene_sky(sky, self.gpu_scene.scene)
+        key = (id(self.gpu_scene), sky_key(sky))
+        if self._sun_key != key:  # astral only when the date, time, site or north change
+            self._sun, self._sun_key = sun_light(sky), key
+        return lights + ([self._sun] if self._sun is not None else [])
+
+    def _sync_lights(self) -> None:
+        """The GPU's light list follows the frame's (the sun comes and goes with the daylight
+        settings): one upload when it changes; the shadow maps see it by ``light_version``."""
+        if self.gpu_scene is None:
+            return
+        lights = self.frame_lights()
+        if lights != self.gpu_scene.light_list:
+            self.gpu_scene.set_lights(lights)
 
     def set_photons(self, photons: PhotonMap | None) -> None:
         """The photon map for the current scene (traced by the host), or None: no indirect."""
@@ -276,6 +298,7 @@ class Renderer:
         self._ensure_targets(eye.width, eye.height)
         self.cps.ensure(self.targets)
         self.step_exposure()
+        self._sync_lights()
         ctx = self.frame_context(frame, out, origin, split)
         enabled = self.configure(ctx)
         scene = ctx.scene

@@ -128,11 +128,15 @@ class ShaderLibrary:
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self._cache: dict[tuple, moderngl.Program | moderngl.ComputeShader] = {}
+        # Defines every program gets besides its own (a renderer-wide variant, e.g. the shadow
+        # filter; a program of another value is another program).
+        self.variant: dict[str, object] = {}
 
     def program(
         self, vertex: str, fragment: str, defines: dict[str, object] | None = None
     ) -> moderngl.Program:
-        key = ("program", vertex, fragment, tuple(sorted((defines or {}).items())))
+        defines = {**self.variant, **(defines or {})}
+        key = ("program", vertex, fragment, tuple(sorted(defines.items())))
         if key not in self._cache:
             vs = assemble(vertex, with_constants(defines))
             fs = assemble(fragment, with_constants(defines))
@@ -156,7 +160,8 @@ class ShaderLibrary:
     def compute(
         self, name: str, defines: dict[str, object] | None = None
     ) -> moderngl.ComputeShader:
-        key = ("compute", name, tuple(sorted((defines or {}).items())))
+        defines = {**self.variant, **(defines or {})}
+        key = ("compute", name, tuple(sorted(defines.items())))
         if key not in self._cache:
             src = assemble(name, with_constants(defines))
             try:

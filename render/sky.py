@@ -20,7 +20,7 @@ import numpy as np
 
 from app.scene import Light
 from app.settings import SkySettings
-from app.sky import SkyBake, bake_sky, north_east
+from app.sky import SkyBake, bake_sky, north_east, scene_sky
 from app.sky_light import VisibilityBake
 from app.sky_model import SUN_HALF_ANGLE_DEG
 from render.gpu_scene import GpuScene
@@ -42,7 +42,7 @@ class SkyFrame:
     bake: SkyBake
     north: np.ndarray
     east: np.ndarray
-    scale: float  # the dimmer (render.brightness), applied like the lamps'
+    scale: float  # a dimmer on sun and sky (1: Brightness acts in the exposure)
 
     @property
     def sun_to(self) -> tuple[float, float, float]:
@@ -52,23 +52,14 @@ class SkyFrame:
         d = sun.direction
         return (-d[0], -d[1], -d[2])
 
-    @property
-    def sun_radiance(self) -> tuple[float, float, float]:
-        sun = self.bake.sun
-        if sun is None:
-            return (0.0, 0.0, 0.0)
-        k = sun.intensity * self.scale
-        return (sun.color[0] * k, sun.color[1] * k, sun.color[2] * k)
-
     def bind(self, prog: moderngl.Program | moderngl.ComputeShader) -> None:
-        """The sun and the sky's diffuse light for sky.glsl (in the SKY variants)."""
+        """The sky's diffuse light for sky.glsl (in the SKY variants; the sun is a light of the
+        light loop)."""
         sh = (self.bake.sh * self.scale).astype(np.float32)
         set_uniforms(
             prog,
             {},
             optional={
-                "u_sun_to": self.sun_to,
-                "u_sun_radiance": self.sun_radiance,
                 "u_sky_sh": sh.tobytes(),
             },
         )
@@ -83,7 +74,6 @@ class DaylightPass(RenderPass):
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
         self.sky: SkySettings = SkySettings()
-        self.brightness = 1.0
         self.bake: SkyBake | None = None
         self._key: tuple | None = None
         self.texture: moderngl.Texture | None = None
@@ -92,8 +82,7 @@ class DaylightPass(RenderPass):
         self.visibility_ready = False
 
     def configure(self, settings, scene, frame) -> bool:
-        self.sky = settings.sky
-        self.brightness = float(settings.render.brightness)
+        self.sky = scene_sky(settings.sky, getattr(scene, "scene", scene))  # its own north
         return bool(settings.sky.enabled)
 
     # -- the sky -------------------------------------------------------------------------------
@@ -150,7 +139,8 @@ class DaylightPass(RenderPass):
         self.update_visibility(frame.scene)
         assert self.texture is not None
         north, east = north_east(self.sky.north_deg)
-        res.put("sky", SkyFrame(self.texture, bake, north, east, self.brightness))
+        # Brightness is the exposure's compensation (the present pass): no dimmer on the sky.
+        res.put("sky", SkyFrame(self.texture, bake, north, east, 1.0))
 
     def release(self) -> None:
         super().release()

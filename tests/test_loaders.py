@@ -340,13 +340,14 @@ def test_gltf_punctual_lights_replace_the_defaults(tmp_path: Path) -> None:
     doc["scenes"][doc.get("scene", 0)]["nodes"] += [len(doc["nodes"]) - 2, len(doc["nodes"]) - 1]
     (tmp_path / "lit.gltf").write_text(json.dumps(doc))
     scene = load_scene(tmp_path / "lit.gltf")
-    assert len(scene.lights) == 1
+    assert len(scene.lights) == 2
     light = scene.lights[0]
     assert light.position == pytest.approx((1.0, 2.0, 3.0))
     assert light.color == pytest.approx((1.0, 0.5, 0.25))
     assert light.intensity == pytest.approx(20.0) and light.range_m == pytest.approx(7.0)
     assert not any("default" in w for w in scene.warnings)
-    assert any("directional" in w for w in scene.warnings)
+    sun = scene.lights[1]  # a directional light shines along its node's -Z
+    assert sun.kind == "directional" and sun.direction == pytest.approx((0.0, 0.0, -1.0))
 
 
 @pytest.mark.parametrize("where", ["document", "scene", "absent", "not-true"])

@@ -113,10 +113,10 @@ def test_each_pass_decides_and_the_list_is_what_the_old_renderer_ran(
         r._ensure_targets(fi.eyes[0].width, fi.eyes[0].height)
         r.cps.ensure(r.targets)
         enabled = r.configure(r.frame_context(fi, host.fbo))
-        assert [p.name for p in enabled] == expected
+        assert [p.name for p in enabled] == ["shadows", *expected]  # shadows: before all
         host.fbo.use()
         r.render(fi, host.fbo)  # and the frame runs with it
-        assert set(r.pass_ms()) == set(expected)
+        assert set(r.pass_ms()) == {"shadows", *expected}
         r.set_photons(None)
     host.set_scene(None)
 

@@ -274,6 +274,7 @@ def bench(
             if progress:
                 progress(i + 1, total)
         errors = host.renderer.errors
+        shadows = host.renderer.shadows.stats()  # shadow_memory_bytes: the maps' GPU memory
         device = host.ctx.info.get("GL_RENDERER", "")
         trace_ms = host.photon_cache.trace_ms
     finally:
@@ -315,6 +316,7 @@ def bench(
         errors=errors,
         per_frame=per_frame,
         error_vs_full_quality=(_error_summary(compared, ppd) if reference is not None else None),
+        shadows=shadows,
     )
 
 

@@ -147,6 +147,7 @@ class BenchResult:
     per_frame: list[dict]
     error_vs_full_quality: ErrorVsFullQuality | None = None
     command: str | None = None  # the command that makes the run again (experiments)
+    shadows: dict | None = None  # the shadow maps: GPU memory, maps drawn (render.shadows)
 
     @property
     def fps_median(self) -> float:
@@ -182,6 +183,8 @@ class BenchResult:
             out["error_vs_full_quality"] = self.error_vs_full_quality.to_dict()
         if self.command is not None:
             out["command"] = self.command
+        if self.shadows is not None:
+            out["shadows"] = self.shadows
         return out
 
 

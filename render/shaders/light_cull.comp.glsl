@@ -4,13 +4,15 @@
 // and keeps the lights whose sphere of influence (position, range) meets the view-space box
 // around the tile's slice of the frustum. Lighting then loops over the tile's list instead of
 // every light. A tile whose list would overflow is marked ALL_LIGHTS, so culling never drops
-// a light that reaches a pixel.
+// a light that reaches a pixel. A spot is culled by its range sphere (which holds its cone);
+// the sun (range -1) reaches every tile.
 layout(local_size_x = 8, local_size_y = 8) in;
 #include "light_tiles.glsl"
 
 layout(std140, binding = 0) uniform Lights {
     vec4 light_position_range[MAX_LIGHTS];
     vec4 light_color_intensity[MAX_LIGHTS];
+    vec4 light_cone[MAX_LIGHTS];
 };
 uniform int u_light_count;
 uniform sampler2D u_bounds;      // per tile: (nearest, farthest) depth; (2, -1) if no surface
@@ -60,8 +62,9 @@ void main() {
             vec4 pr = light_position_range[i];
             vec3 c = (u_view * vec4(pr.xyz, 1.0)).xyz;
             vec3 d = c - clamp(c, bmin, bmax);
-            bool reaches = dot(d, d) < pr.w * pr.w;
-            for (int e = 0; e < 4 && reaches; ++e) {
+            bool sun = pr.w < 0.0;
+            bool reaches = sun || dot(d, d) < pr.w * pr.w;
+            for (int e = 0; e < 4 && reaches && !sun; ++e) {
                 reaches = dot(planes[e].xyz, c) > -pr.w;
             }
             if (reaches) {

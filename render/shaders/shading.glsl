@@ -1,4 +1,4 @@
-// Direct lighting from point lights with a finite range, shared by the deferred lighting
+// Direct lighting from point, spot and directional lights, shared by the deferred lighting
 // (compute or fragment) and the forward path, so both paths give the same picture.
 #include "common.glsl"
 #include "material_occlusion.glsl"
@@ -7,9 +7,11 @@
 // A uniform block, not a storage buffer: on llvmpipe, SSBO loads in this loop cost 2.5x more
 // (measured: 161 ms vs 65 ms for 4 lights at 2x640x720).
 // MAX_LIGHTS: injected by the shader loader (render/constants.py).
+// Rows filled by render/gpu_scene.py light_rows().
 layout(std140, binding = 0) uniform Lights {
-    vec4 light_position_range[MAX_LIGHTS];   // xyz world position, w range in metres
-    vec4 light_color_intensity[MAX_LIGHTS];  // rgb linear colour, a intensity
+    vec4 light_position_range[MAX_LIGHTS];   // xyz world position, w range in metres (-1: sun)
+    vec4 light_color_intensity[MAX_LIGHTS];  // rgb linear colour, a candela (sun: lux)
+    vec4 light_cone[MAX_LIGHTS];             // spot: axis * scale, offset; sun: its direction
 };
 
 uniform int u_light_count;
@@ -25,6 +27,7 @@ void use_tile_of(ivec2 pixel) {
     g_tile = pixel / LIGHT_TILE;
 }
 #endif
+#include "shadows.glsl"
 uniform float u_light_scale;  // brightness setting times exposure-independent scale
 uniform float u_ambient;
 #include "sky.glsl"
@@ -45,7 +48,6 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
     // by the material's occlusion map and the ambient occlusion.
     float occlusion = material_occlusion() * ambient_occlusion();
     vec3 sum = (u_ambient * albedo + sky_ambient(N, albedo)) * occlusion;
-    sum += sun_light(N, V, diffuse_color, spec_color, shininess, spec_norm);
 #ifdef TILED_LIGHTS
     uint tile_count = texelFetch(u_tile_counts, g_tile, 0).r;
     bool every = tile_count == ALL_LIGHTS;
@@ -56,18 +58,29 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
 #else
     for (int i = 0; i < u_light_count; ++i) {
 #endif
-        vec3 toL = light_position_range[i].xyz - P;
-        float d2 = dot(toL, toL);
-        float range = light_position_range[i].w;
-        if (d2 >= range * range) continue;
-        vec3 L = toL * inversesqrt(max(d2, 1e-12));
+        vec4 pr = light_position_range[i];
+        vec3 L;
+        float dist = 0.0;
+        float falloff = 1.0;  // the sun: no distance falloff
+        if (pr.w < 0.0) {
+            L = -light_cone[i].xyz;
+        } else {
+            vec3 toL = pr.xyz - P;
+            float d2 = dot(toL, toL);
+            if (d2 >= pr.w * pr.w) continue;
+            dist = sqrt(d2);
+            L = toL / max(dist, 1e-6);
+            falloff = range_window(d2, pr.w) / (d2 + 1.0) * spot_cone(i, L);
+            if (falloff <= 0.0) continue;
+        }
         float ndl = dot(N, L);
         if (ndl <= 0.0) continue;
+        falloff *= shadow_factor(i, P, N, L, dist);
         vec3 H = safe_normalize(L + V, N);
         float ndh = max(dot(N, H), 0.0);
         float spec = spec_norm * exp2(shininess * log2(max(ndh, 1e-6)));
         vec3 radiance = light_color_intensity[i].rgb * (light_color_intensity[i].a * u_light_scale)
-                        * range_window(d2, range) / (d2 + 1.0);
+                        * falloff;
         sum += radiance * ndl * (diffuse_color / PI + spec_color * spec);
     }
     return storable(sum);

@@ -1,0 +1,506 @@
+"""Shadow maps: one depth atlas, drawn only when a light or the geometry changes.
+
+Every light that casts shadows and reaches a surface in view gets tiles of the atlas: six
+perspective cube faces for a point light, one perspective tile for a spot, one orthographic tile
+fitted to the scene's bounds for the sun (a directional light). A tile's size follows the light's
+size on screen (its range sphere's projected radius, 256 to 1024 texels a face; the sun 2048), so
+a lamp far away costs little. Maps are cached: the key is the light's parameters, its tile and the
+scene (a new ``GpuScene`` is new geometry); a static interior draws each map once and reuses it.
+After a new scene's first frame (which draws every map), at most
+``render.shadow_updates_per_frame`` lights are redrawn per frame (the most prominent first); a
+light waiting for its turn keeps its last map, or has no shadow until its first. A light whose
+wanted tile size changes by one step (2x) keeps its tiles.
+
+The pass fills the ``Shadows`` uniform block (shadows.glsl, binding 1) and binds the atlas to its
+texture unit every frame, so every lighting path (deferred compute and fragment, forward, coarse
+pixel shading) reads the same maps without binding anything itself.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from app.camera import EyeView
+from app.scene import Light
+from render.constants import MAX_LIGHTS, MAX_SHADOW_TILES, SHADOW_ATLAS, TEXTURE_UNITS
+from render.gpu_scene import GpuScene, light_rows, spot_cosines
+from render.pass_graph import FrameContext, RenderPass, Resources, set_uniforms
+from render.shaders import ShaderLibrary
+
+MODES = {"off": 0, "hard": 1, "soft": 2}
+MIN_FACE, MAX_FACE = 256, 1024  # a lamp's tile edge, texels
+SUN_TILE = 2048
+NEAR_M = 0.05  # perspective maps' near plane
+SLOPE_OFFSET = (2.0, 4.0)
+# Soft shadows: the edge's half width on the receiving surface (metres); a lamp's shade is wide,
+# the sun's disc small (half a degree: about 1 cm at a metre or two from the blinds).
+SOFT_RADIUS_M = {
+    "point": 0.025,
+    "spot": 0.02,
+    "directional": 0.006,
+}  # glPolygonOffset(factor, units) while drawing depth
+# Cube faces: the direction each looks along and its up vector.
+CUBE_FACES = (
+    ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
+    ((-1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
+    ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
+    ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+    ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
+)
+
+
+# -- matrices -----------------------------------------------------------------------------------
+
+
+def look_at(eye: np.ndarray, forward: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """World -> view for a camera at ``eye`` looking along ``forward`` (OpenGL: down -z)."""
+    z = -forward / np.linalg.norm(forward)
+    if abs(float(np.dot(z, up))) > 0.99 * float(np.linalg.norm(up)):
+        up = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    x = np.cross(up, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = x, y, z
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def perspective(tan_half: float, near: float, far: float) -> np.ndarray:
+    m = np.zeros((4, 4))
+    m[0, 0] = m[1, 1] = 1.0 / tan_half
+    m[2, 2] = (far + near) / (near - far)
+    m[2, 3] = 2.0 * far * near / (near - far)
+    m[3, 2] = -1.0
+    return m
+
+
+def orthographic(radius: float, near: float, far: float) -> np.ndarray:
+    m = np.eye(4)
+    m[0, 0] = m[1, 1] = 1.0 / radius
+    m[2, 2] = -2.0 / (far - near)
+    m[2, 3] = -(far + near) / (far - near)
+    return m
+
+
+def to_tile(x: int, y: int, size: int) -> np.ndarray:
+    """Clip space -> atlas (u, v, depth) of the tile at (x, y) (before the divide)."""
+    s = size / SHADOW_ATLAS
+    m = np.eye(4)
+    m[0, 0] = m[1, 1] = 0.5 * s
+    m[0, 3] = x / SHADOW_ATLAS + 0.5 * s
+    m[1, 3] = y / SHADOW_ATLAS + 0.5 * s
+    m[2, 2] = m[2, 3] = 0.5
+    return m
+
+
+# -- the atlas's space ---------------------------------------------------------------------------
+
+
+class BuddyAtlas:
+    """Power-of-two square tiles of a square atlas; freed siblings merge again."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.free: dict[int, set[tuple[int, int]]] = {size: {(0, 0)}}
+
+    def alloc(self, size: int) -> tuple[int, int] | None:
+        s = size
+        while s <= self.size and not self.free.get(s):
+            s *= 2
+        if s > self.size:
+            return None
+        x, y = min(self.free[s])  # deterministic
+        self.free[s].discard((x, y))
+        while s > size:
+            s //= 2
+            for dx, dy in ((s, 0), (0, s), (s, s)):
+                self.free.setdefault(s, set()).add((x + dx, y + dy))
+        return x, y
+
+    def release(self, x: int, y: int, size: int) -> None:
+        while size < self.size:
+            parent = (x - x % (2 * size), y - y % (2 * size))
+            siblings = {(parent[0] + dx, parent[1] + dy) for dx in (0, size) for dy in (0, size)}
+            others = siblings - {(x, y)}
+            if not others <= self.free.get(size, set()):
+                break
+            self.free[size] -= others
+            x, y, size = parent[0], parent[1], size * 2
+        self.free.setdefault(size, set()).add((x, y))
+
+
+# -- what one light's map is ---------------------------------------------------------------------
+
+
+@dataclass
+class ShadowMap:
+    """One light's tiles and the parameters its content was drawn with."""
+
+    size: int
+    tiles: list[tuple[int, int]]  # atlas texel origin of each tile (6 for a point light)
+    drawn_key: tuple | None = None  # the light key of what the tiles hold (None: nothing yet)
+    matrices: list[np.ndarray] = field(default_factory=list)  # world -> atlas, per tile
+    texel: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # shadows.glsl's shadow_texel
+
+
+def light_key(light: Light) -> tuple:
+    return tuple(round(float(v), 6) for v in light_rows([light])[0])
+
+
+def faces_of(light: Light) -> int:
+    return 6 if light.kind == "point" else 1
+
+
+def scene_bounds(scene: GpuScene) -> tuple[np.ndarray, float]:
+    """Centre and radius of the sphere around every shadow-casting mesh (not the glowing)."""
+    points = [
+        np.asarray(m.positions, np.float64).reshape(-1, 3)
+        for m, g in zip(scene.scene.meshes, scene.meshes)
+        if casts(g) and len(m.positions)
+    ]
+    if not points:
+        return np.zeros(3), 1.0
+    allp = np.concatenate(points)
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    return 0.5 * (lo + hi), max(0.5 * float(np.linalg.norm(hi - lo)), 0.01)
+
+
+def casts(mesh) -> bool:
+    """Glowing surfaces (the sky beyond a window, a lamp's bulb) cast no shadow."""
+    return not any(mesh.material.emissive)
+
+
+def frustum_planes(view_projection: np.ndarray) -> np.ndarray:
+    """The six planes (a, b, c, d; inside: ax + by + cz + d >= 0, normalised) of a frustum."""
+    m = view_projection
+    planes = np.array(
+        [m[3] + m[0], m[3] - m[0], m[3] + m[1], m[3] - m[1], m[3] + m[2], m[3] - m[2]]
+    )
+    return planes / np.linalg.norm(planes[:, :3], axis=1, keepdims=True)
+
+
+def reaches_view(light: Light, eyes: list[EyeView]) -> bool:
+    """Whether the light's range sphere meets either eye's frustum (the sun always does)."""
+    if light.kind == "directional":
+        return True
+    c = np.append(np.asarray(light.position, np.float64), 1.0)
+    return any(
+        bool(np.all(frustum_planes(eye.view_projection) @ c >= -light.range_m)) for eye in eyes
+    )
+
+
+def wanted_size(light: Light, eyes: list[EyeView]) -> int:
+    """Tile edge from the light's influence on screen: the projected radius of its range sphere
+    in pixels, as a power of two within MIN_FACE..MAX_FACE (the sun: SUN_TILE)."""
+    if light.kind == "directional":
+        return SUN_TILE
+    best = 0.0
+    for eye in eyes:
+        d = float(np.linalg.norm(np.asarray(light.position) - eye.position))
+        r = light.range_m
+        if d <= r:
+            return MAX_FACE
+        radius_px = r / math.sqrt(d * d - r * r) * float(eye.projection[1, 1]) * eye.height / 2
+        best = max(best, radius_px)
+    size = 1 << max(0, math.ceil(math.log2(max(best, 1.0))))
+    return int(min(max(size, MIN_FACE), MAX_FACE))
+
+
+def fit_sizes(
+    wanted: dict[int, tuple[int, int]], capacity: int, current: dict[int, int] | None = None
+) -> dict[int, tuple[int, int]]:
+    """Halve the largest tiles until the lights' tiles fit ``capacity`` texels (size, faces);
+    among equals first those that would not keep their ``current`` size (no redraw for them)."""
+    sizes = dict(wanted)
+    now = current or {}
+    while sum(s * s * n for s, n in sizes.values()) > capacity:
+        i = max(sizes, key=lambda k: (sizes[k][0], now.get(k) != sizes[k][0], k))
+        s, n = sizes[i]
+        if s <= 64:
+            break
+        sizes[i] = (s // 2, n)
+    return sizes
+
+
+def map_matrices(
+    light: Light, size: int, tiles: list[tuple[int, int]], bounds: tuple[np.ndarray, float]
+) -> tuple[list[np.ndarray], list[np.ndarray], tuple[float, float, float, float]]:
+    """Per tile the light's view-projection and world -> atlas matrix; the texel terms."""
+    pos = np.asarray(light.position, np.float64)
+    direction = np.asarray(light.direction, np.float64)
+    n = float(np.linalg.norm(direction))
+    direction = direction / n if n > 1e-12 else np.array([0.0, -1.0, 0.0])
+    views: list[np.ndarray] = []
+    if light.kind == "directional":
+        centre, radius = bounds
+        view = look_at(centre - direction * radius * 1.05, direction, np.array([0.0, 1.0, 0.0]))
+        views.append(orthographic(radius, 0.0, 2.1 * radius) @ view)
+        texel = (1.0 / SHADOW_ATLAS, 2.0 * radius / size, 0.0, SOFT_RADIUS_M["directional"])
+    else:
+        far = max(light.range_m, NEAR_M * 2)
+        if light.kind == "spot":
+            cos_o, _ = spot_cosines(light)
+            half = min(math.acos(cos_o) + math.radians(2.0), math.radians(85.0))
+            tan_half = math.tan(half)
+            faces = [(direction, np.array([0.0, 1.0, 0.0]))]
+        else:
+            tan_half = 1.0 + 4.0 / size  # a few texels beyond 90 degrees: the filter's margin
+            faces = [(np.asarray(f), np.asarray(u)) for f, u in CUBE_FACES]
+        proj = perspective(tan_half, NEAR_M, far)
+        views = [proj @ look_at(pos, f, u) for f, u in faces]
+        texel = (1.0 / SHADOW_ATLAS, 2.0 * tan_half / size, 1.0, SOFT_RADIUS_M[light.kind])
+    atlas = [to_tile(x, y, size) @ vp for vp, (x, y) in zip(views, tiles)]
+    return views, atlas, texel
+
+
+# -- the pass ------------------------------------------------------------------------------------
+
+
+class ShadowPass(RenderPass):
+    """Before everything that lights: redraw the shadow maps that changed (within the per-frame
+    budget), fill the Shadows block and bind the atlas."""
+
+    name = "shadows"
+    writes = ("shadow_maps",)
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
+        self.mode = MODES["soft"]
+        self.budget = 2
+        self.block = ctx.buffer(reserve=_block_bytes())
+        self.dummy = ctx.depth_texture((1, 1))
+        _shadow_sampling(self.dummy)
+        self.atlas: moderngl.Texture | None = None
+        self.fbo: moderngl.Framebuffer | None = None
+        self.space = BuddyAtlas(SHADOW_ATLAS)
+        self.maps: dict[int, ShadowMap] = {}
+        self.shaders.variant["SHADOW_FILTER"] = self.mode  # the default, for the warm-up
+        self._scene: tuple | None = None
+        self._scene_obj: GpuScene | None = None
+        self._generation = 0
+        self._bounds: tuple[np.ndarray, float] = (np.zeros(3), 1.0)
+        # Statistics: lights drawn (a point light's six faces count once), ever and last frame.
+        self.renders = 0
+        self.face_renders = 0
+        self.updates = 0
+        self.pending = 0  # lights waiting for a redraw after this frame
+        self.shadowed = 0  # lights with a map in use this frame
+
+    def configure(self, settings, scene, frame) -> bool:
+        self.mode = MODES.get(settings.render.shadows, MODES["soft"])
+        self.budget = max(1, int(settings.render.shadow_updates_per_frame))
+        # Off or no light that casts: the lighting compiles without the lookups.
+        needed = any(light.casts_shadows for light in scene.light_list)
+        self.shaders.variant["SHADOW_FILTER"] = self.mode if needed else 0
+        return True  # also when off: the block then says so
+
+    @property
+    def memory_bytes(self) -> int:
+        """GPU memory of the shadow maps (the atlas, 32-bit depth; 0 until a light needs it)."""
+        return SHADOW_ATLAS * SHADOW_ATLAS * 4 if self.atlas is not None else 0
+
+    def stats(self) -> dict:
+        return {
+            "shadow_memory_bytes": self.memory_bytes,
+            "shadowed_lights": self.shadowed,
+            "shadow_updates": self.updates,
+            "shadow_updates_waiting": self.pending,
+            "shadow_maps_drawn": self.renders,
+        }
+
+    # -- per frame ---------------------------------------------------------------------------
+    def run(self, frame: FrameContext) -> None:
+        """As every pass, timed; llvmpipe's timer query around the depth draws into the atlas
+        reads 2^32 ns, so a frame that draws maps is timed on the clock (it waits for the GPU
+        then: rare, maps are cached)."""
+        start = time.perf_counter()
+        super().run(frame)
+        if self.updates:
+            self.ctx.finish()
+            self.last_ms = (time.perf_counter() - start) * 1000.0
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        scene = frame.scene
+        lights = scene.light_list
+        first = scene is not self._scene_obj
+        if first:  # new geometry: every map is stale
+            self._scene_obj = scene  # held, so a new scene can never reuse its id
+            self._generation += 1
+            self._scene = (self._generation,)
+            self._drop_all()
+            self._bounds = scene_bounds(scene)
+        self.updates = 0
+        self.pending = 0
+        wanted: dict[int, tuple[int, int]] = {}
+        if self.mode:
+            for i, light in enumerate(lights):
+                if (
+                    light.casts_shadows
+                    and light.intensity > 0.0
+                    and math.isfinite(light.intensity)
+                    and reaches_view(light, frame.eyes)
+                ):
+                    wanted[i] = (wanted_size(light, frame.eyes), faces_of(light))
+        for i, (size, faces) in wanted.items():  # hysteresis: a step of 2x keeps the tiles
+            if i in self.maps and size // 2 <= self.maps[i].size <= size * 2:
+                wanted[i] = (self.maps[i].size, faces)
+        wanted = self._within_tiles(wanted, lights, frame.eyes)
+        current = {i: m.size for i, m in self.maps.items()}
+        wanted = fit_sizes(wanted, SHADOW_ATLAS * SHADOW_ATLAS, current)
+        self._allocate(wanted, lights)
+        dirty = [i for i in wanted if self.maps[i].drawn_key != (light_key(lights[i]), self._scene)]
+        # A new scene's first frame draws every map (it stalls for its shaders anyway, and a
+        # still picture is then complete); later changes wait for the budget.
+        budget = len(dirty) if first else self.budget
+        for i in dirty[:budget]:
+            self._draw(frame, i, lights[i])
+        self.pending = max(0, len(dirty) - budget)
+        self._upload(wanted)
+        self.block.bind_to_uniform_block(1)
+        if self.atlas is not None:  # hard: one texel per lookup; soft: bilinear comparisons
+            f = moderngl.NEAREST if self.mode == MODES["hard"] else moderngl.LINEAR
+            self.atlas.filter = (f, f)
+        (self.atlas or self.dummy).use(TEXTURE_UNITS["shadow_atlas"])
+
+    def _within_tiles(
+        self, wanted: dict[int, tuple[int, int]], lights: list[Light], eyes: list[EyeView]
+    ) -> dict[int, tuple[int, int]]:
+        """The most prominent lights whose tiles fit the block (the sun, then the nearest)."""
+
+        def prominence(i: int) -> tuple:
+            light = lights[i]
+            if light.kind == "directional":
+                return (0, 0.0, i)
+            d = min(float(np.linalg.norm(np.asarray(light.position) - e.position)) for e in eyes)
+            return (1, d - light.range_m, i)
+
+        out: dict[int, tuple[int, int]] = {}
+        used = 0
+        for i in sorted(wanted, key=prominence):
+            if used + wanted[i][1] <= MAX_SHADOW_TILES:
+                out[i] = wanted[i]
+                used += wanted[i][1]
+        return out
+
+    def _allocate(self, wanted: dict[int, tuple[int, int]], lights: list[Light]) -> None:
+        if wanted and self.atlas is None:
+            self.atlas = self.ctx.depth_texture((SHADOW_ATLAS, SHADOW_ATLAS))
+            _shadow_sampling(self.atlas)
+            self.fbo = self.ctx.framebuffer(depth_attachment=self.atlas)
+        for i in list(self.maps):  # resized or no longer a light: free the tiles
+            if i >= len(lights) or (i in wanted and self.maps[i].size != wanted[i][0]):
+                self._free(i)
+        missing = [
+            i for i in sorted(wanted, key=lambda k: (-wanted[k][0], k)) if i not in self.maps
+        ]
+        for i in missing:
+            if not self._try_alloc(i, *wanted[i]):
+                # Out of room: lights out of view give theirs up first, then everything repacks
+                # (largest first, which always fits what fit_sizes allowed).
+                for j in [j for j in self.maps if j not in wanted]:
+                    self._free(j)
+                if not self._try_alloc(i, *wanted[i]):
+                    self._drop_all()
+                    for k in sorted(wanted, key=lambda k: (-wanted[k][0], k)):
+                        self._try_alloc(k, *wanted[k])
+                    return
+
+    def _try_alloc(self, i: int, size: int, faces: int) -> bool:
+        tiles: list[tuple[int, int]] = []
+        for _ in range(faces):
+            at = self.space.alloc(size)
+            if at is None:
+                for x, y in tiles:
+                    self.space.release(x, y, size)
+                return False
+            tiles.append(at)
+        self.maps[i] = ShadowMap(size, tiles)
+        return True
+
+    def _free(self, i: int) -> None:
+        m = self.maps.pop(i)
+        for x, y in m.tiles:
+            self.space.release(x, y, m.size)
+
+    def _drop_all(self) -> None:
+        self.maps.clear()
+        self.space = BuddyAtlas(SHADOW_ATLAS)
+
+    def _draw(self, frame: FrameContext, i: int, light: Light) -> None:
+        m = self.maps[i]
+        views, m.matrices, m.texel = map_matrices(light, m.size, m.tiles, self._bounds)
+        ctx, fbo = self.ctx, self.fbo
+        assert fbo is not None
+        prog = self.shaders.program("shadow_depth.vert.glsl", "shadow_depth.frag.glsl")
+        scene = frame.scene
+        fbo.use()
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        ctx.polygon_offset = SLOPE_OFFSET
+        casters = [k for k, g in enumerate(scene.meshes) if casts(g)]
+        for vp, (x, y) in zip(views, m.tiles):
+            rect = (x, y, m.size, m.size)
+            fbo.viewport = rect
+            fbo.clear(depth=1.0, viewport=rect)
+            set_uniforms(prog, {"u_light_view_projection": vp})
+            for k in casters:
+                scene.vao(prog, k).render(moderngl.TRIANGLES)
+            self.face_renders += 1
+        ctx.polygon_offset = (0.0, 0.0)
+        ctx.disable(moderngl.DEPTH_TEST)
+        m.drawn_key = (light_key(light), self._scene)
+        self.renders += 1
+        self.updates += 1
+
+    def _upload(self, wanted: dict[int, tuple[int, int]]) -> None:
+        info = np.zeros((MAX_LIGHTS, 4), np.int32)
+        info[:, 0] = -1
+        matrices = np.zeros((MAX_SHADOW_TILES, 4, 4), np.float32)
+        rects = np.zeros((MAX_SHADOW_TILES, 4), np.float32)
+        texels = np.zeros((MAX_SHADOW_TILES, 4), np.float32)
+        tile = 0
+        self.shadowed = 0
+        for i in sorted(wanted):
+            m = self.maps.get(i)
+            if m is None or m.drawn_key is None or not m.matrices:
+                continue  # never drawn yet: no shadow this frame
+            info[i, :2] = (tile, len(m.tiles))
+            for (x, y), mat in zip(m.tiles, m.matrices):
+                matrices[tile] = mat.T  # std140 mat4: columns
+                rects[tile] = np.array([x, y, x + m.size, y + m.size]) / SHADOW_ATLAS
+                texels[tile] = m.texel
+                tile += 1
+            self.shadowed += 1
+        head = np.array([self.mode, SHADOW_ATLAS, 0, 0], np.int32)
+        self.block.write(
+            head.tobytes()
+            + info.tobytes()
+            + matrices.tobytes()
+            + rects.tobytes()
+            + texels.tobytes()
+        )
+
+    def release(self) -> None:
+        super().release()
+        for obj in (self.fbo, self.atlas, self.dummy, self.block):
+            if obj is not None:
+                obj.release()
+        self.fbo = self.atlas = None
+        self.maps.clear()
+
+
+def _block_bytes() -> int:
+    return 16 + MAX_LIGHTS * 16 + MAX_SHADOW_TILES * (64 + 16 + 16)
+
+
+def _shadow_sampling(tex: moderngl.Texture) -> None:
+    tex.compare_func = "<="
+    tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = False

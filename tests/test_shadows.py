@@ -1,0 +1,371 @@
+"""Shadows, spot lights and the sun: what a designer sees on the floor.
+
+Known geometry (a 1 m box on a floor) under a point light and a spot: the floor behind the box
+is dark and beside it bright; soft shadows have a graded edge and hard ones none; a flat lit floor
+has no acne; maps are drawn once for a static scene and again when a light moves, at most
+``render.shadow_updates_per_frame`` lights per frame; a spot's cone falls off as glTF says; the
+showroom's blinds stripe the floor with the 10:00 sun.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from app import sky
+from app.gltf import gltf_lights
+from app.scene import Light, Material, Scene, Viewpoint
+from app.session import Session
+from app.settings import Settings
+from assets.showroom import WINDOW_Z, MeshBuilder, build_showroom
+from render.offscreen import OffscreenHost
+
+W, H = 640, 360  # both eyes: 320 x 360 each
+LIGHT_POS = (2.5, 2.0, 0.0)
+SHADOWED = (-1.0, 0.0, 0.0)  # behind the box, seen from the light
+LIT = (-1.0, 0.0, 1.6)  # beside the shadow
+
+
+def box_scene(lights: list[Light], box: bool = True) -> Scene:
+    floor = MeshBuilder()
+    floor.quad((-5.0, 0.0, 5.0), (10.0, 0.0, 0.0), (0.0, 0.0, -10.0))
+    meshes = [floor.mesh("floor", 0)]
+    if box:
+        cube = MeshBuilder()
+        cube.box((0.0, 0.5, 0.0), (1.0, 1.0, 1.0))
+        meshes.append(cube.mesh("box", 0))
+    return Scene(
+        "box",
+        meshes,
+        [Material("grey", (0.8, 0.8, 0.8, 1.0), None, roughness=1.0)],
+        [],
+        lights,
+        Viewpoint((-0.5, 4.0, 4.0), yaw_deg=0.0, pitch_deg=-50.0),
+        floor_y=0.0,
+    ).sanitized()
+
+
+def spot_towards(target, inner=20.0, outer=35.0, pos=LIGHT_POS, intensity=20.0) -> Light:
+    d = np.asarray(target, float) - np.asarray(pos, float)
+    d /= np.linalg.norm(d)
+    return Light(
+        pos,
+        (1.0, 1.0, 1.0),
+        intensity,
+        10.0,
+        kind="spot",
+        direction=tuple(float(v) for v in d),
+        inner_cone_deg=inner,
+        outer_cone_deg=outer,
+    )
+
+
+@pytest.fixture(scope="module")
+def host():
+    s = Settings()
+    s.render.overlay = False
+    s.render.ambient = 0.0  # a pixel's value is then its lights' alone
+    h = OffscreenHost(W, H, s)
+    yield h
+    assert not h.renderer.errors
+    h.close()
+
+
+def frame(host: OffscreenHost, scene: Scene):
+    session = Session(host.settings.copy())
+    session.set_scene(scene)
+    return session.frame_input(*host.eye_size)
+
+
+def hdr(host: OffscreenHost, scene: Scene, shadows: str = "soft", frames: int = 1, **settings):
+    host.settings.set("render.shadows", shadows)
+    for key, value in settings.items():
+        host.settings.set(key.replace("__", "."), value)
+    host.set_scene(scene)
+    fi = frame(host, scene)
+    for _ in range(frames):
+        host.draw(fi)
+    return host.read_hdr(0)[..., :3].mean(axis=-1), fi
+
+
+def pixel(fi, world) -> tuple[int, int]:
+    """(row, column) of a world point in the left eye (row 0 at the top)."""
+    eye = fi.eyes[0]
+    clip = eye.view_projection @ np.array([*world, 1.0])
+    x, y = clip[:2] / clip[3]
+    return int((1.0 - (y * 0.5 + 0.5)) * eye.height), int((x * 0.5 + 0.5) * eye.width)
+
+
+def floor_point(fi, row: int, col: int) -> np.ndarray:
+    """The floor (y = 0) point seen through the centre of a left-eye pixel."""
+    eye = fi.eyes[0]
+    ndc = np.array([(col + 0.5) / eye.width * 2 - 1, 1 - (row + 0.5) / eye.height * 2])
+    inv = eye.inverse_view_projection
+    a, b = (inv @ np.array([*ndc, z, 1.0]) for z in (-1.0, 1.0))
+    a, b = a[:3] / a[3], b[:3] / b[3]
+    return a + (b - a) * (a[1] / (a[1] - b[1]))
+
+
+def at(img, fi, world) -> float:
+    r, c = pixel(fi, world)
+    return float(img[r, c])
+
+
+@pytest.mark.parametrize(
+    "light",
+    [Light(LIGHT_POS, (1, 1, 1), 20.0, 10.0), spot_towards((-0.5, 0.0, 0.6))],
+    ids=["point", "spot"],
+)
+@pytest.mark.parametrize("shadows", ["hard", "soft"])
+def test_the_floor_behind_a_box_is_dark_and_beside_it_bright(host, light, shadows):
+    img, fi = hdr(host, box_scene([light]), shadows)
+    lit, shadowed = at(img, fi, LIT), at(img, fi, SHADOWED)
+    assert lit > 0.05
+    assert shadowed < 0.02 * lit, (lit, shadowed)
+    off, _ = hdr(host, box_scene([light]), "off")
+    assert at(off, fi, SHADOWED) > 0.5 * lit  # the darkness is the shadow, not the light's reach
+
+
+def edge_profile(host, shadows: str) -> np.ndarray:
+    """The shadow factor (picture / unshadowed picture) along a line across the shadow's edge."""
+    light = Light(LIGHT_POS, (1, 1, 1), 20.0, 10.0)
+    img, fi = hdr(host, box_scene([light]), shadows)
+    off, _ = hdr(host, box_scene([light]), "off")
+    points = [(-1.2, 0.0, z) for z in np.linspace(0.0, 1.5, 80)]
+    return np.array([at(img, fi, p) / max(at(off, fi, p), 1e-6) for p in points])
+
+
+def test_soft_shadows_have_a_graded_edge_and_hard_ones_do_not(host):
+    hard, soft = edge_profile(host, "hard"), edge_profile(host, "soft")
+    for profile in (hard, soft):  # both go from full shadow to full light
+        assert profile[0] < 0.02 and profile[-1] > 0.98
+    between = lambda p: int(np.sum((p > 0.1) & (p < 0.9)))  # noqa: E731
+    assert between(hard) <= 1
+    assert between(soft) >= 2
+
+
+@pytest.mark.parametrize("shadows", ["hard", "soft"])
+@pytest.mark.parametrize("kind", ["point", "spot"])
+def test_a_flat_lit_floor_has_no_acne(host, shadows, kind):
+    """Shadows on a floor nothing stands on change nothing: no speckles, no stripes."""
+    light = (
+        Light((0.0, 2.5, 0.0), (1, 1, 1), 20.0, 10.0)
+        if kind == "point"
+        else spot_towards((-0.5, 0.0, 0.5), inner=40.0, outer=60.0)
+    )
+    scene = box_scene([light], box=False)
+    img, fi = hdr(host, scene, shadows)
+    off, _ = hdr(host, scene, "off")
+    top, left = pixel(fi, (-2.0, 0.0, -1.0))
+    bottom, right = pixel(fi, (1.0, 0.0, 1.5))
+    ratio = img[top:bottom, left:right] / np.maximum(off[top:bottom, left:right], 1e-6)
+    assert ratio.size > 500
+    assert ratio.min() > 0.99 and float(ratio.std()) < 0.002
+
+
+def test_a_static_scene_draws_each_map_once_and_a_moved_light_again(host):
+    lights = [
+        Light(LIGHT_POS, (1, 1, 1), 20.0, 10.0),
+        spot_towards((-0.5, 0.0, 0.6)),
+        Light((-2.0, 2.0, 1.0), (1, 1, 1), 10.0, 8.0),
+    ]
+    scene = box_scene(lights)
+    host.settings.set("render.shadows", "soft")
+    host.settings.set("render.shadow_updates_per_frame", 4)
+    host.set_scene(scene)
+    fi = frame(host, scene)
+    maps = host.renderer.shadows
+    before = maps.renders
+    for _ in range(10):
+        host.draw(fi)
+    assert maps.renders - before == len(lights)  # once per light in 10 frames
+    assert maps.shadowed == len(lights)
+    moved = list(scene.lights)
+    moved[0] = dataclasses.replace(moved[0], position=(2.0, 2.2, -0.5))
+    with host.ctx:
+        host.renderer.gpu_scene.set_lights(moved)
+    host.draw(fi)
+    assert maps.renders - before == len(lights) + 1  # only the moved light's map again
+    host.draw(fi)
+    assert maps.renders - before == len(lights) + 1
+    host.set_scene(scene)  # new geometry: every map again
+    host.draw(fi)
+    assert maps.renders - before == 2 * len(lights) + 1
+
+
+def test_the_budget_limits_map_updates_per_frame(host):
+    lights = [
+        Light((x, 2.0, z), (1, 1, 1), 5.0, 8.0) for x in (-2.0, 0.0, 2.0) for z in (-1.0, 1.5)
+    ]
+    scene = box_scene(lights)
+    host.settings.set("render.shadows", "hard")
+    host.settings.set("render.shadow_updates_per_frame", 2)
+    host.set_scene(scene)
+    fi = frame(host, scene)
+    maps = host.renderer.shadows
+    host.draw(fi)  # a new scene's first frame draws every map
+    assert (maps.updates, maps.shadowed, maps.pending) == (6, 6, 0)
+    moved = [
+        dataclasses.replace(light, position=(light.position[0], 2.3, light.position[2]))
+        for light in lights
+    ]
+    with host.ctx:
+        host.renderer.gpu_scene.set_lights(moved)
+    drawn = []
+    for _ in range(4):
+        host.draw(fi)
+        drawn.append((maps.updates, maps.shadowed, maps.pending))
+    # Two redraws a frame; the lights waiting keep their last shadows meanwhile.
+    assert drawn == [(2, 6, 4), (2, 6, 2), (2, 6, 0), (0, 6, 0)]
+    with host.ctx:  # a light switched on later waits for its turn, without a shadow
+        host.renderer.gpu_scene.set_lights([*moved, Light((1.0, 2.0, 3.0), (1, 1, 1), 5.0, 8.0)])
+    host.settings.set("render.shadow_updates_per_frame", 1)
+    host.draw(fi)
+    assert (maps.updates, maps.shadowed, maps.pending) == (1, 7, 0)
+    assert maps.memory_bytes > 0
+
+
+def test_a_light_out_of_view_gets_no_map(host):
+    behind = Light((0.0, 2.0, 30.0), (1, 1, 1), 5.0, 3.0)  # far behind the eye, short reach
+    scene = box_scene([Light(LIGHT_POS, (1, 1, 1), 20.0, 10.0), behind])
+    hdr(host, scene, "soft", render__shadow_updates_per_frame=4)
+    assert host.renderer.shadows.shadowed == 1
+
+
+def test_a_spot_falls_off_between_its_inner_and_outer_cone(host):
+    """Spot over point light of the same intensity, pixel by pixel: glTF's smooth cone."""
+    pos, inner, outer = (0.0, 2.5, 0.0), 15.0, 30.0
+    spot = Light(pos, (1, 1, 1), 20.0, 10.0, "spot", (0.0, -1.0, 0.0), inner, outer)
+    point = Light(pos, (1, 1, 1), 20.0, 10.0)
+    a, fi = hdr(host, box_scene([spot], box=False), "off")
+    b, _ = hdr(host, box_scene([point], box=False), "off")
+    cos_o, cos_i = math.cos(math.radians(outer)), math.cos(math.radians(inner))
+    checked = 0
+    for r in np.linspace(0.0, 2.0, 21):
+        p = floor_point(fi, *pixel(fi, (-r * 0.6, 0.0, r * 0.8)))  # the pixel's own point
+        cos_t = pos[1] / float(np.linalg.norm(np.asarray(pos) - p))
+        expected = min(max((cos_t - cos_o) / (cos_i - cos_o), 0.0), 1.0) ** 2
+        assert at(a, fi, p) / at(b, fi, p) == pytest.approx(expected, abs=0.03), r
+        checked += 0.05 < expected < 0.95
+    assert checked >= 2  # some pixels lie inside the falloff band
+
+
+def test_light_culling_keeps_spots_and_the_sun(host):
+    """More than 8 lights turn tiled culling on; a spot and the sun must survive it."""
+    lights = [Light((x, 0.6, -4.0), (1, 1, 1), 2.0, 1.0) for x in np.linspace(-4, 4, 9)]
+    lights += [spot_towards((-0.5, 0.0, 0.6)), Light((0, 0, 0), (1, 1, 1), 0.5, kind="directional")]
+    lights[-1].direction = (0.3, -0.9, -0.2)
+    scene = box_scene(lights)
+    culled, _ = hdr(host, scene, "soft", render__light_culling=True)
+    assert host.renderer.light_cull.enabled
+    full, _ = hdr(host, scene, "soft", render__light_culling=False)
+    host.settings.set("render.light_culling", True)
+    assert np.abs(culled - full).max() < 1e-3
+
+
+def test_every_lighting_path_shows_the_shadow(host):
+    light = Light(LIGHT_POS, (1, 1, 1), 20.0, 10.0)
+    for settings in (
+        {"render__path": "forward"},
+        {"render__path": "deferred", "render__lighting": "fragment"},
+        {"render__path": "deferred", "render__lighting": "compute", "cps__mode": "cps"},
+        {"render__path": "deferred", "render__lighting": "fragment", "cps__mode": "cps"},
+    ):
+        img, fi = hdr(host, box_scene([light]), "soft", **settings)
+        assert at(img, fi, SHADOWED) < 0.05 * at(img, fi, LIT), settings
+    for key in ("render.path", "render.lighting", "cps.mode"):
+        host.settings.set(key, Settings().get(key))
+
+
+def test_gltf_spot_and_sun_read_with_their_cone_and_direction():
+    down = [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]  # -90 degrees about x: -Z turns to -Y
+    doc = {
+        "extensions": {
+            "KHR_lights_punctual": {
+                "lights": [
+                    {
+                        "type": "spot",
+                        "intensity": 40.0,
+                        "range": 6.0,
+                        "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5},
+                    },
+                    {"type": "directional", "intensity": 3.0},
+                ]
+            }
+        },
+        "nodes": [
+            {
+                "translation": [1, 3, 2],
+                "rotation": down,
+                "extensions": {"KHR_lights_punctual": {"light": 0}},
+            },
+            {"extensions": {"KHR_lights_punctual": {"light": 1}}},
+        ],
+        "scenes": [{"nodes": [0, 1]}],
+    }
+    warnings: list[str] = []
+    spot, sun = gltf_lights(doc, warnings)
+    assert not warnings
+    assert spot.kind == "spot" and spot.position == pytest.approx((1, 3, 2))
+    assert spot.direction == pytest.approx((0, -1, 0), abs=1e-9)
+    assert spot.inner_cone_deg == pytest.approx(math.degrees(0.2))
+    assert spot.outer_cone_deg == pytest.approx(math.degrees(0.5))
+    assert spot.intensity == 40.0 and spot.range_m == 6.0
+    assert sun.kind == "directional" and sun.direction == pytest.approx((0, 0, -1))
+
+
+def test_the_10_oclock_sun_stripes_the_showroom_floor_through_the_blinds():
+    s = Settings()
+    s.render.overlay = False
+    scene = build_showroom(0)
+    # The showroom's own north (Scene.north_deg) with the default date, time and site.
+    assert s.sky.time == "10:00"
+    towards_sun = sky.sun_direction(dataclasses.replace(s.sky, north_deg=scene.north_deg))
+    assert towards_sun[1] > 0.0 and towards_sun[0] < -0.5  # up, and in at the west window
+    scene.lights.append(
+        Light((0, 0, 0), (1.0, 0.95, 0.9), 8.0, kind="directional", direction=tuple(-towards_sun))
+    )
+    # Where the sun through the middle of the window meets the floor.
+    z = 0.5 * sum(WINDOW_Z)
+    t = 1.6 / towards_sun[1]
+    centre = np.array([-4.0, 1.6, z]) - towards_sun * t  # on the floor (y = 0)
+    scene.spawn = Viewpoint((float(centre[0]), 1.2, float(centre[2])), 90.0, -89.0)
+    with OffscreenHost(640, 360, s) as host:
+        host.set_scene(scene)
+        fi = frame(host, scene)
+        host.draw(fi)
+        img = host.read_hdr(0)[..., :3].mean(axis=-1)
+        assert not host.renderer.errors
+    # A line across the slats' stripes (along x, the sun's way into the room).
+    rows = [pixel(fi, (float(centre[0]) + dx, 0.0, float(centre[2])))[0] for dx in (-0.3, 0.3)]
+    col = pixel(fi, tuple(centre))[1]
+    line = img[min(rows) : max(rows), col]
+    bright, dark = np.percentile(line, 90), np.percentile(line, 10)
+    assert bright > 5 * dark > 0.0
+    above = line > 0.5 * (bright + dark)
+    changes = int(np.sum(above[1:] != above[:-1]))
+    assert changes >= 12, line  # at least six bright and six dark stripes in 60 cm
+
+
+def test_the_photon_tracer_emits_a_spot_within_its_cone_only():
+    """A spot in a grey box sends the power of its cone (glTF falloff) and no more; the sun
+    adds nothing inside a closed box (its beam enters only through openings)."""
+    from app.photons import trace_photons
+    from tests.test_photons import HALF, _box
+
+    inner, outer = 20.0, 30.0
+    spot = Light((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, 1e4, "spot", (0.0, -1.0, 0.0), inner, outer)
+    sun = Light((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 5.0, kind="directional")
+    pm = trace_photons(_box(0.5, [spot, sun]), 2**15, seed=3, max_bounces=1)
+    # Expected first-hit flux on the floor (y = -HALF) through the cone, times the albedo.
+    rng = np.random.default_rng(7)
+    d = rng.normal(size=(400_000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    cos_o, cos_i = math.cos(math.radians(outer)), math.cos(math.radians(inner))
+    cone = np.clip((-d[:, 1] - cos_o) / (cos_i - cos_o), 0.0, 1.0) ** 2
+    dist2 = np.min(HALF / np.abs(d), axis=1) ** 2
+    expected = 4 * np.pi * spot.intensity * np.mean(cone * dist2 / (dist2 + 1)) * 0.5
+    assert pm.power.sum(axis=0, dtype=np.float64) == pytest.approx([expected] * 3, rel=0.05)
