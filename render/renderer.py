@@ -134,6 +134,7 @@ class Renderer:
         self.gpu_scene: GpuScene | None = None
         self._sun: Light | None = None
         self._sun_key: tuple | None = None
+        self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
@@ -184,8 +185,11 @@ class Renderer:
         if self.gpu_scene is None:
             return
         lights = self.frame_lights()
-        if lights != self.gpu_scene.light_list:
+        if self._synced is None or self._synced[0] is not self.gpu_scene:
+            self._synced = (self.gpu_scene, list(self.gpu_scene.scene.lights))  # as uploaded
+        if lights != self._synced[1]:  # lights set on the GpuScene directly stay until then
             self.gpu_scene.set_lights(lights)
+            self._synced = (self.gpu_scene, lights)
 
     def set_photons(self, photons: PhotonMap | None) -> None:
         """The photon map for the current scene (traced by the host), or None: no indirect."""

@@ -173,8 +173,9 @@ def scene_bounds(scene: GpuScene) -> tuple[np.ndarray, float]:
 
 
 def casts(mesh) -> bool:
-    """Glowing surfaces (the sky beyond a window, a lamp's bulb) cast no shadow."""
-    return not any(mesh.material.emissive)
+    """Glowing surfaces (the sky beyond a window, a lamp's bulb) and glass (blended) cast no
+    shadow: a window pane lets the sun through."""
+    return not any(mesh.material.emissive) and mesh.material.alpha_mode != "BLEND"
 
 
 def frustum_planes(view_projection: np.ndarray) -> np.ndarray:
