@@ -52,7 +52,8 @@ def _box(lo, hi, material: int) -> list[Mesh]:
 
 
 def lit_box() -> Scene:
-    """A white floor 12 m wide, a glowing red marker box off the centre line (its silhouette, not its shading), one 20 cd lamp."""
+    """A white floor 12 m wide, one 20 cd lamp and a glowing red marker box off the centre
+    line (its silhouette is compared, not its shading)."""
     floor = _quad("floor", [(-6, 0, 6), (6, 0, 6), (6, 0, -6), (-6, 0, -6)], (0, 1, 0), material=0)
     materials = [
         Material("white", (1.0, 1.0, 1.0, 1.0), roughness=1.0),
@@ -161,3 +162,30 @@ def test_unknown_feature_keys_are_skipped_with_a_note():
     assert "unknown setting 'render.made_up'" in cr.usable(unknown, s)
     ambient = next(f for f in cr.FEATURES if f.name == "ambient")
     assert cr.usable(ambient, s) is None
+
+
+def test_compare_reports_each_feature_on_and_off(rendered):
+    """reference-compare's table: a feature the settings know has FLIP on and off (the
+    ambient light changes our frame, so the figures differ); one whose keys this build does
+    not know yet (shadows before their branch merges) is listed with the reason."""
+    scene, _s, ref, _ours, cache = rendered
+    s = settings()
+    s.set("render.ambient", 0.5)  # not exported (Cycles bounces light instead): same reference
+    result = cr.compare("lit-box", scene, s, VIEW, SIZE, 8, ["ambient", "shadows"], cache)
+    assert result.reference == str(ref.folder)
+    rows = {r.name: r for r in result.features}
+    ambient = rows["ambient"]
+    assert 0.0 < ambient.flip_on < 1.0 and 0.0 < ambient.flip_off < 1.0
+    assert ambient.flip_on != pytest.approx(ambient.flip_off, abs=1e-3)
+    assert ambient.flip_on == pytest.approx(result.flip_defaults)
+    known = set(Settings().keys())
+    if "render.shadows" in known:
+        assert rows["shadows"].flip_on is not None
+    else:
+        assert rows["shadows"].flip_on is None
+        assert "unknown setting 'render.shadows'" in rows["shadows"].note
+        assert "Shadows" in result.table() and "unknown setting" in result.table()
+    as_json = {r["name"]: r for r in result.to_dict()["features"]}
+    assert as_json["ambient"]["helps"] is (ambient.flip_on < ambient.flip_off)
+    with pytest.raises(ValueError, match="unknown feature"):
+        cr.compare("lit-box", scene, s, VIEW, SIZE, 8, ["sparkles"], cache)

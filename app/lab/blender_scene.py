@@ -17,6 +17,7 @@ Axes: ours are Y up, -Z forward; Blender's Z up, so a point (x, y, z) goes to (x
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import sys
@@ -35,9 +36,7 @@ def to_blender(v: np.ndarray) -> np.ndarray:
 def _matrix(right: np.ndarray, up: np.ndarray, back: np.ndarray, location: np.ndarray):
     """An object matrix whose local X, Y, Z axes are ``right``, ``up``, ``back`` (Blender
     axes): a camera or a lamp looks down its local -Z."""
-    from mathutils import Matrix
-
-    m = Matrix.Identity(4)
+    m = importlib.import_module("mathutils").Matrix.Identity(4)
     for row in range(3):
         m[row][0], m[row][1], m[row][2], m[row][3] = (
             right[row],
@@ -206,7 +205,8 @@ def build_camera(bpy, job: dict) -> None:
 
 
 def render(job_dir: Path) -> None:
-    import bpy
+    # Imported by name: PyInstaller must not pull Blender (821 MB) into the app's bundle.
+    bpy = importlib.import_module("bpy")
 
     start = time.perf_counter()
     job = json.loads((job_dir / "job.json").read_text())

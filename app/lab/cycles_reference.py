@@ -277,7 +277,8 @@ def export(
 def write_job(job: ReferenceJob, folder: Path) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "job.json").write_text(json.dumps(job.description(), indent=1))
-    np.savez(folder / "meshes.npz", **job.arrays)
+    save: Any = np.savez  # numpy's stub types the keyword arrays as its own options
+    save(folder / "meshes.npz", **job.arrays)
     for i, rgba in enumerate(job.texture_images):
         atomic_write_png(folder / f"tex_{i}.png", np.ascontiguousarray(rgba, np.uint8))
 
@@ -398,16 +399,25 @@ def usable(feature: Feature, settings: Settings) -> str | None:
 def our_frames(
     scene: Scene, view: Viewpoint, size: tuple[int, int], variants: dict[str, Settings]
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Our left eye at ``size`` for each settings variant: (sRGB uint8, linear HDR)."""
+    """Our left eye at ``size`` for each settings variant: (sRGB uint8, linear HDR).
+
+    One host draws them all: its settings are changed in place between frames, as the
+    window's panels change them (the scene is uploaded once)."""
     from app.frame import FrameInput
     from render.offscreen import OffscreenHost  # GL only when a comparison runs
 
-    out = {}
-    for name, settings in variants.items():
-        with OffscreenHost(2 * size[0], size[1], settings) as host:
-            host.set_scene(scene)
-            host.set_text_image(None)
-            cam = StereoCamera(settings.stereo)
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    if not variants:
+        return out
+    live = next(iter(variants.values())).copy()
+    with OffscreenHost(2 * size[0], size[1], live) as host:
+        host.set_scene(scene)
+        host.set_text_image(None)
+        for name, settings in variants.items():
+            for key in settings.keys():
+                if live.get(key) != settings.get(key):
+                    live.set(key, settings.get(key))
+            cam = StereoCamera(live.stereo)
             cam.set_pose(view.position, view.yaw_deg, view.pitch_deg)
             img = host.draw(FrameInput(cam.eyes(*size)))
             out[name] = (img[:, : size[0]].copy(), host.read_hdr(0)[:, :, :3].copy())
@@ -496,8 +506,6 @@ def compare(
 ) -> Comparison:
     """FLIP of our frame against the Cycles reference, with the settings as given and with
     each feature on and off."""
-    ref = render(export(scene, settings, view, size, samples), cache, note)
-    reference_img = ref.image(settings.render.exposure)
     chosen = [f for f in FEATURES if features is None or f.name in features]
     unknown = set(features or []) - {f.name for f in FEATURES}
     if unknown:
@@ -505,6 +513,8 @@ def compare(
             f"unknown feature {', '.join(sorted(unknown))} "
             f"(known: {', '.join(f.name for f in FEATURES)})"
         )
+    ref = render(export(scene, settings, view, size, samples), cache, note)
+    reference_img = ref.image(settings.render.exposure)
     variants: dict[str, Settings] = {"defaults": settings}
     rows = []
     for f in chosen:
