@@ -96,8 +96,7 @@ def build_material(bpy, m: dict, job: dict):
     """Principled BSDF: base colour x texture (sRGB) x vertex colour, roughness, metallic,
     emission in cd/m2 (strength 1), alpha from the base colour."""
     mat = bpy.data.materials.new(m["name"] or "material")
-    if mat.node_tree is None:
-        mat.use_nodes = True  # Blender < 5: nodes are off on a new material
+    mat.use_nodes = True  # (deprecated in Blender 5, where it is on already)
     tree = mat.node_tree
     bsdf = tree.nodes["Principled BSDF"]
     base = m["base_color"]
@@ -162,8 +161,7 @@ def build_lights(bpy, job: dict) -> None:
 
 def build_world(bpy, job: dict) -> None:
     world = bpy.data.worlds.new("world")
-    if world.node_tree is None:
-        world.use_nodes = True
+    world.use_nodes = True  # off on a new world, even in Blender 5.0
     bpy.context.scene.world = world
     background = world.node_tree.nodes["Background"]
     sky = job.get("sky")

@@ -31,6 +31,7 @@ radiance, so the reference PNG is what our renderer would show for that radiance
 from __future__ import annotations
 
 import hashlib
+import importlib
 import importlib.metadata
 import json
 import logging
@@ -136,10 +137,19 @@ def eye_camera(settings: Settings, view: Viewpoint, size: tuple[int, int]) -> di
 
 # -- the export ------------------------------------------------------------------------------------
 def lights_for(scene: Scene, settings: Settings) -> list[dict[str, Any]]:
-    """Our lamps in Blender's terms (see the module's units); brightness applied."""
+    """Our lamps in Blender's terms (see the module's units); brightness applied. With
+    ``sky.enabled`` and no sun in the scene, the sun of ``app.sky.sun_light`` where this build
+    has it (the daylight branch), in lux."""
     scale = settings.render.brightness
     out = []
-    for light in scene.lights:
+    lights = list(scene.lights)
+    sun_light = getattr(importlib.import_module("app.sky"), "sun_light", None)
+    if settings.sky.enabled and sun_light is not None:
+        if not any(light.kind == "directional" for light in lights):
+            sun = sun_light(settings)
+            if sun is not None:
+                lights.append(sun)
+    for light in lights:
         intensity = float(light.intensity) * scale
         if intensity <= 0.0:
             continue
