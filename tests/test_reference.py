@@ -189,3 +189,21 @@ def test_compare_reports_each_feature_on_and_off(rendered):
     assert as_json["ambient"]["helps"] is (ambient.flip_on < ambient.flip_off)
     with pytest.raises(ValueError, match="unknown feature"):
         cr.compare("lit-box", scene, s, VIEW, SIZE, 8, ["sparkles"], cache)
+
+
+def test_sky_is_seen_and_compared_against_a_daylight_reference(rendered):
+    """With sky.enabled the reference sees Blender's sky above the horizon (blue, in the
+    thousands of cd/m2 of a clear sky), and the sky row compares both of our frames with
+    that daylight reference rather than the lamp-lit one."""
+    scene, _s, ref, _ours, cache = rendered
+    s = settings()
+    s.set("sky.enabled", True)
+    day = cr.render(cr.export(scene, s, VIEW, SIZE, samples=8), cache)
+    assert day.digest != ref.digest
+    top = day.radiance[:4].reshape(-1, 3).mean(axis=0)
+    assert top[2] > top[0] and 1000.0 < cr.luminance(top) < 20000.0
+    assert cr.luminance(ref.radiance[:4]).max() < 1e-3  # no sky: a black world
+    result = cr.compare("lit-box", scene, settings(), VIEW, SIZE, 8, ["sky"], cache)
+    (row,) = result.features
+    assert "reference with it on" in row.label
+    assert row.flip_on is not None and row.flip_off is not None

@@ -371,6 +371,9 @@ class Feature:
     label: str
     on: dict[str, Any]
     off: dict[str, Any]
+    # The feature changes the scene, not only our picture of it (the sky lights the room):
+    # both frames are compared with the reference rendered with ``on``.
+    changes_reference: bool = False
 
 
 # Features other branches bring (render.shadows, AO, normal maps, ...) are listed here by
@@ -378,8 +381,8 @@ class Feature:
 # works before and after they merge. Add a row to add a feature.
 FEATURES: tuple[Feature, ...] = (
     Feature("shadows", "Shadows", {"render.shadows": "soft"}, {"render.shadows": "off"}),
-    Feature("sky", "Sun and sky", {"sky.enabled": True}, {"sky.enabled": False}),
-    Feature("ao", "Ambient occlusion", {"render.ao": True}, {"render.ao": False}),
+    Feature("sky", "Sun and sky", {"sky.enabled": True}, {"sky.enabled": False}, True),
+    Feature("ao", "Ambient occlusion", {"render.ao": "screen"}, {"render.ao": "off"}),
     Feature(
         "normal_maps", "Normal maps", {"render.normal_maps": True}, {"render.normal_maps": False}
     ),
@@ -529,7 +532,8 @@ def compare(
     rows = []
     for f in chosen:
         why = usable(f, settings)
-        rows.append(FeatureRow(f.name, f.label, note=why or ""))
+        label = f"{f.label} (reference with it on)" if f.changes_reference else f.label
+        rows.append(FeatureRow(f.name, label, note=why or ""))
         if why is None:
             variants[f"{f.name}:on"] = with_overrides(settings, f.on)
             variants[f"{f.name}:off"] = with_overrides(settings, f.off)
@@ -537,13 +541,23 @@ def compare(
     ppd = ppd_of(settings, size)
 
     keep = without_gaze_ring(size)
+    references = {ref.digest: reference_img}
 
-    def flip_of(name: str) -> float:
-        return metrics.flip(reference_img, frames[name][0], ppd, keep)
+    def reference_for(overrides: dict[str, Any]) -> np.ndarray:
+        job = export(scene, with_overrides(settings, overrides), view, size, samples)
+        digest = job.digest(bpy_version())
+        if digest not in references:
+            references[digest] = render(job, cache, note).image(settings.render.exposure)
+        return references[digest]
 
-    for row in rows:
+    def flip_of(name: str, reference: np.ndarray = reference_img) -> float:
+        return metrics.flip(reference, frames[name][0], ppd, keep)
+
+    for f, row in zip(chosen, rows):
         if not row.note:
-            row.flip_on, row.flip_off = flip_of(f"{row.name}:on"), flip_of(f"{row.name}:off")
+            target = reference_for(f.on) if f.changes_reference else reference_img
+            row.flip_on = flip_of(f"{row.name}:on", target)
+            row.flip_off = flip_of(f"{row.name}:off", target)
     pos = view.position
     return Comparison(
         scene=scene_name,
