@@ -414,15 +414,19 @@ def our_frames(
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Our left eye at ``size`` for each settings variant: (sRGB uint8, linear HDR).
 
-    One host draws them all: its settings are changed in place between frames, as the
-    window's panels change them (the scene is uploaded once)."""
-    from app.frame import FrameInput
+    One host and one session draw them all, as the window does: the session ticks once at
+    the view (gaze at the centre, texture levels, the coarse-shading caps) and the settings
+    are changed in place between frames, as the panels change them."""
+    from app.paths import FIXED_DT
+    from app.session import Session
     from render.offscreen import OffscreenHost  # GL only when a comparison runs
 
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     if not variants:
         return out
     live = next(iter(variants.values())).copy()
+    session = Session(live)
+    session.set_scene(scene)
     with OffscreenHost(2 * size[0], size[1], live) as host:
         host.set_scene(scene)
         host.set_text_image(None)
@@ -430,9 +434,10 @@ def our_frames(
             for key in settings.keys():
                 if live.get(key) != settings.get(key):
                     live.set(key, settings.get(key))
-            cam = StereoCamera(live.stereo)
-            cam.set_pose(view.position, view.yaw_deg, view.pitch_deg)
-            img = host.draw(FrameInput(cam.eyes(*size)))
+            session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
+            session.eye_size = size
+            session.tick(FIXED_DT)
+            img = host.draw(session.frame_input(*size))
             out[name] = (img[:, : size[0]].copy(), host.read_hdr(0)[:, :, :3].copy())
     return out
 
