@@ -106,7 +106,8 @@ def rendered(tmp_path_factory):
 def test_reference_is_lit_and_in_our_units(rendered):
     """The floor under the lamp: Cycles gives the physical I / d^2 / pi, ours that times our
     falloff d^2 / (d^2 + 1) and range window (render/shaders/shading.glsl)."""
-    _scene, s, ref, (_img, hdr), _cache = rendered
+    _scene, s, ref, ours, _cache = rendered
+    hdr = ours.hdr
     assert not ref.cached
     assert ref.radiance.shape == (SIZE[1], SIZE[0], 3)
     assert ref.image(1.0).mean() > 20, "the reference is black"
@@ -123,8 +124,8 @@ def test_reference_is_lit_and_in_our_units(rendered):
 def test_camera_matches(rendered):
     """The marker box lands on the same pixels in both pictures (position, axes, field of view
     and the left eye's off-axis shift)."""
-    _scene, s, ref, (img, _hdr), _cache = rendered
-    ours_at, ref_at = red_centroid(img), red_centroid(ref.image(1.0))
+    _scene, s, ref, ours, _cache = rendered
+    ours_at, ref_at = red_centroid(ours.image), red_centroid(ours.shown(ref.radiance))
     assert np.abs(ours_at - ref_at).max() < 1.5, (ours_at, ref_at)
     # and where the camera model puts the box's centre
     expected = np.array(pixel_of((-1.4, 0.4, -0.6), s)) + 0.5
@@ -134,9 +135,9 @@ def test_camera_matches(rendered):
 def test_display_transform_is_our_present_pass(rendered):
     """present() in numpy gives the present pass's pixels for our own HDR frame (to 1 level,
     the gaze ring aside), so the reference goes through the same display transform."""
-    _scene, _s, _ref, (img, hdr), _cache = rendered
+    _scene, _s, _ref, ours, _cache = rendered
     keep = cr.without_gaze_ring(SIZE)
-    diff = np.abs(cr.present(hdr, 1.0).astype(int) - img.astype(int))
+    diff = np.abs(ours.shown(ours.hdr).astype(int) - ours.image.astype(int))
     assert diff[keep].max() <= 1
 
 

@@ -96,10 +96,43 @@ def srgb_encode(c: np.ndarray) -> np.ndarray:
     return np.where(c >= 0.0031308, curve, c * 12.92)
 
 
-def present(radiance: np.ndarray, exposure: float) -> np.ndarray:
+ToneCurve = Callable[[np.ndarray], np.ndarray]
+
+
+def tone_curve(settings: Settings) -> ToneCurve:
+    """The present pass's tone curve for ``settings``: ``app.exposure.tone_map`` with
+    ``render.tone_mapping`` where this build has them (the exposure branch), else the ACES fit
+    above."""
+    curve = getattr(settings.render, "tone_mapping", None)
+    if curve is None:
+        return aces
+    exposure = importlib.import_module("app.exposure")
+    return lambda x: np.asarray(exposure.tone_map(x, str(curve)), np.float64)
+
+
+def brightness_dims_lamps(settings: Settings) -> bool:
+    """Whether ``render.brightness`` scales the lamps (before the exposure branch) rather than
+    the exposure (with ``render.exposure_ev``, after it)."""
+    return not hasattr(settings.render, "exposure_ev")
+
+
+def fixed_exposure(settings: Settings) -> float:
+    """The present pass's exposure for a fixed exposure: ``render.exposure``, times the EV100
+    scale where this build has one (the exposure branch's ``render.exposure_ev``)."""
+    scale = float(settings.render.exposure)
+    ev = getattr(settings.render, "exposure_ev", None)
+    if ev is None:
+        return scale
+    exposure = importlib.import_module("app.exposure")
+    return scale * float(
+        exposure.exposure_scale(exposure.effective_ev(float(ev), settings.render.brightness))
+    )
+
+
+def present(radiance: np.ndarray, exposure: float, curve: ToneCurve = aces) -> np.ndarray:
     """Linear radiance (cd/m2) as our present pass shows it: (H, W, 3) uint8 sRGB."""
     x = np.maximum(np.nan_to_num(np.asarray(radiance, np.float64)), 0.0) * exposure
-    return (np.clip(srgb_encode(aces(x)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    return (np.clip(srgb_encode(curve(x)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
 # -- the view --------------------------------------------------------------------------------------
@@ -140,7 +173,7 @@ def lights_for(scene: Scene, settings: Settings) -> list[dict[str, Any]]:
     """Our lamps in Blender's terms (see the module's units); brightness applied. With
     ``sky.enabled`` and no sun in the scene, the sun of ``app.sky.sun_light`` where this build
     has it (the daylight branch), in lux."""
-    scale = settings.render.brightness
+    scale = settings.render.brightness if brightness_dims_lamps(settings) else 1.0
     out = []
     lights = list(scene.lights)
     sun_light = getattr(importlib.import_module("app.sky"), "sun_light", None)
@@ -278,7 +311,7 @@ def export(
         sky=sky_for(settings),
         materials=materials,
         textures=[{"name": t.name, "repeat": bool(t.repeat)} for t in scene.textures],
-        exposure=float(settings.render.exposure),
+        exposure=fixed_exposure(settings),
         arrays=merged_arrays(scene),
         texture_images=[t.rgba for t in scene.textures],
     )
@@ -304,8 +337,8 @@ class Reference:
     cached: bool  # found in the cache (no render this time)
     render_s: float
 
-    def image(self, exposure: float) -> np.ndarray:
-        return present(self.radiance, exposure)
+    def image(self, exposure: float, curve: ToneCurve = aces) -> np.ndarray:
+        return present(self.radiance, exposure, curve)
 
 
 def _python() -> str:
@@ -314,7 +347,10 @@ def _python() -> str:
 
 
 def render(
-    job: ReferenceJob, cache: Path | None = None, note: Callable[[str], None] | None = None
+    job: ReferenceJob,
+    cache: Path | None = None,
+    note: Callable[[str], None] | None = None,
+    job_curve: ToneCurve = aces,
 ) -> Reference:
     """The reference of ``job``, from the cache or rendered by Cycles (then cached)."""
     version = bpy_version()
@@ -347,7 +383,7 @@ def render(
         radiance = np.load(work / "radiance.npy")
         for name in ("meshes.npz", *(p.name for p in work.glob("tex_*.png"))):
             (work / name).unlink(missing_ok=True)  # the job's copy of the scene: not kept
-        atomic_write_png(work / "reference.png", present(radiance, job.exposure))
+        atomic_write_png(work / "reference.png", present(radiance, job.exposure, job_curve))
         atomic_write_json(
             work / "reference.json",
             {"digest": digest, "bpy": version, "render_s": elapsed, **timing},
@@ -363,6 +399,20 @@ def render(
 
 
 # -- our frame and the comparison --------------------------------------------------------------
+@dataclass
+class OurFrame:
+    """Our left eye: what the present pass showed, the linear HDR it showed, and the display
+    transform it used (the reference goes through the same)."""
+
+    image: np.ndarray  # (H, W, 3) uint8 sRGB
+    hdr: np.ndarray  # (H, W, 3) float32 cd/m2
+    exposure: float
+    curve: ToneCurve
+
+    def shown(self, radiance: np.ndarray) -> np.ndarray:
+        return present(radiance, self.exposure, self.curve)
+
+
 @dataclass(frozen=True)
 class Feature:
     """A feature as settings overrides: its frame with ``on`` against one with ``off``."""
@@ -411,8 +461,8 @@ def usable(feature: Feature, settings: Settings) -> str | None:
 
 def our_frames(
     scene: Scene, view: Viewpoint, size: tuple[int, int], variants: dict[str, Settings]
-) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Our left eye at ``size`` for each settings variant: (sRGB uint8, linear HDR).
+) -> dict[str, OurFrame]:
+    """Our left eye at ``size`` for each settings variant.
 
     One host and one session draw them all, as the window does: the session ticks once at
     the view (gaze at the centre, texture levels, the coarse-shading caps) and the settings
@@ -421,7 +471,7 @@ def our_frames(
     from app.session import Session
     from render.offscreen import OffscreenHost  # GL only when a comparison runs
 
-    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    out: dict[str, OurFrame] = {}
     if not variants:
         return out
     live = next(iter(variants.values())).copy()
@@ -438,7 +488,14 @@ def our_frames(
             session.eye_size = size
             session.tick(FIXED_DT)
             img = host.draw(session.frame_input(*size))
-            out[name] = (img[:, : size[0]].copy(), host.read_hdr(0)[:, :, :3].copy())
+            # the exposure the present pass applied (metered, with the exposure branch)
+            scale = float(getattr(host.renderer, "_exposure_scale", 1.0))
+            out[name] = OurFrame(
+                img[:, : size[0]].copy(),
+                host.read_hdr(0)[:, :, :3].copy(),
+                scale * live.render.exposure,
+                tone_curve(live),
+            )
     return out
 
 
@@ -532,7 +589,6 @@ def compare(
             f"(known: {', '.join(f.name for f in FEATURES)})"
         )
     ref = render(export(scene, settings, view, size, samples), cache, note)
-    reference_img = ref.image(settings.render.exposure)
     variants: dict[str, Settings] = {"defaults": settings}
     rows = []
     for f in chosen:
@@ -546,21 +602,22 @@ def compare(
     ppd = ppd_of(settings, size)
 
     keep = without_gaze_ring(size)
-    references = {ref.digest: reference_img}
+    references = {ref.digest: ref.radiance}
 
     def reference_for(overrides: dict[str, Any]) -> np.ndarray:
         job = export(scene, with_overrides(settings, overrides), view, size, samples)
         digest = job.digest(bpy_version())
         if digest not in references:
-            references[digest] = render(job, cache, note).image(settings.render.exposure)
+            references[digest] = render(job, cache, note).radiance
         return references[digest]
 
-    def flip_of(name: str, reference: np.ndarray = reference_img) -> float:
-        return metrics.flip(reference, frames[name][0], ppd, keep)
+    def flip_of(name: str, radiance: np.ndarray = ref.radiance) -> float:
+        ours = frames[name]  # the reference shown with our frame's exposure and curve
+        return metrics.flip(ours.shown(radiance), ours.image, ppd, keep)
 
     for f, row in zip(chosen, rows):
         if not row.note:
-            target = reference_for(f.on) if f.changes_reference else reference_img
+            target = reference_for(f.on) if f.changes_reference else ref.radiance
             row.flip_on = flip_of(f"{row.name}:on", target)
             row.flip_off = flip_of(f"{row.name}:off", target)
     pos = view.position
@@ -575,7 +632,7 @@ def compare(
         samples=samples,
         reference=str(ref.folder),
         flip_defaults=flip_of("defaults"),
-        mean_luminance_ours=float(luminance(frames["defaults"][1]).mean()),
+        mean_luminance_ours=float(luminance(frames["defaults"].hdr).mean()),
         mean_luminance_reference=float(luminance(ref.radiance).mean()),
         features=rows,
     )
@@ -626,7 +683,8 @@ def run_command(args: Any, settings: Settings) -> int:
         if args.command == "reference":
             ref = render(export(scene, settings, view, size, args.samples), note=note)
             if args.out:
-                atomic_write_png(args.out, ref.image(settings.render.exposure))
+                shown = present(ref.radiance, fixed_exposure(settings), tone_curve(settings))
+                atomic_write_png(args.out, shown)
                 print(f"wrote {args.out}")
             how = "from the cache" if ref.cached else f"rendered in {ref.render_s:.0f} s"
             print(f"reference {ref.digest} ({how}): {ref.folder}")
