@@ -31,6 +31,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test]'
+	# .[reference] without its numpy<2 pin (pyproject.toml): Cycles for tests/test_reference.py
+	$(PY) -m pip install -q zstandard requests cython && $(PY) -m pip install -q --no-deps 'bpy==5.0.1'
 	touch $@
 
 venv: $(STAMP)
