@@ -215,7 +215,9 @@ def test_showroom_walkthrough_frame_is_a_lit_room_in_stereo():
     left, right = img[:, :320].astype(float), img[:, 320:].astype(float)
     for eye in (left, right):
         assert 40 < eye.mean() < 200 and eye.std() > 25  # lit, textured, not blown out
-        assert (eye.max(axis=2) < 8).mean() < 0.02  # hardly any black: the room surrounds us
+        # Hardly any black: the room surrounds us (the black piano and the shade under the
+        # furniture are a few per cent; the empty background around a model would be far more).
+        assert (eye.max(axis=2) < 8).mean() < 0.05
     assert np.abs(left - right).mean() > 2  # two viewpoints, not one image twice
 
 
