@@ -356,7 +356,7 @@ class RenderSettings:
         step=0.01,
     )
     ao: str = _opt(
-        "screen",
+        "off",
         "Darkens the even ambient light in corners, creases and under furniture, where "
         "light from the room reaches less. Worked out from the picture each frame, or once "
         "for the whole model (a few seconds after it opens; rooms built of large flat pieces "

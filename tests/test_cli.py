@@ -76,8 +76,8 @@ def test_bench_writes_the_documented_fields(tmp_path):
     r = json.loads(out.read_text())
     assert r["frames"] == 6 and r["fps_median"] > 0
     assert r["frame_ms"]["p95"] >= r["frame_ms"]["median"] > 0
-    # The forward path with its shadow maps and ambient occlusion (both on by default).
-    assert set(r["passes"]) == {"shadows", "ao", "forward", "present", "overlay"}
+    # The forward path with its shadow maps (on by default).
+    assert set(r["passes"]) == {"shadows", "forward", "present", "overlay"}
     assert all(p["median_ms"] >= 0 for p in r["passes"].values())
     assert r["texture_resident_bytes"] > 0 and r["shaded_samples"] > 0
     assert r["settings"]["render"]["path"] == "forward" and r["errors"] == []

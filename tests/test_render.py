@@ -144,10 +144,10 @@ def test_lighting_pass_counts_samples_and_times_each_pass(host):
     r = host.renderer
     assert r.shaded_samples() == W * H  # both eyes, full rate
     ms = r.pass_ms()  # one light: no culling pass
-    assert set(ms) == {"shadows", "gbuffer", "ao", "lighting", "emissive", "present", "overlay"}
+    assert set(ms) == {"shadows", "gbuffer", "lighting", "emissive", "present", "overlay"}
     assert all(v >= 0 for v in ms.values()) and ms["lighting"] > 0
     draw(host, checker_scene(), render__path="forward")
-    assert set(r.pass_ms()) == {"shadows", "ao", "forward", "present", "overlay"}
+    assert set(r.pass_ms()) == {"shadows", "forward", "present", "overlay"}
     assert 0 < r.shaded_samples() <= W * H * 2
 
 
