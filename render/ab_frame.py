@@ -18,11 +18,10 @@ import moderngl
 import numpy as np
 
 from app.frame import FrameInput
-from app.quality import full_quality
 from app.scene import Scene
-from app.settings import Settings
 from render.ab_split import ABSplitPass, SplitFrame, SplitView, technique_caption
 from render.passes import OverlayPass
+from render.quality import FullQualityReference
 from render.renderer import PASS_TYPES, Renderer
 
 if TYPE_CHECKING:
@@ -41,42 +40,15 @@ class ABFrame:
 
     def __init__(self, ctx: moderngl.Context, stream_in: bool = False) -> None:
         self.ctx = ctx
-        self.stream_in = stream_in
-        self.renderer: Renderer | None = None  # the full-quality half's own renderer
-        self._scene: Scene | None = None
-        self._color: moderngl.Texture | None = None
-        self._fbo: moderngl.Framebuffer | None = None
-
-    @staticmethod
-    def reference_settings(live: Settings) -> Settings:
-        """The full-quality half's settings for the live ones (the live photon map)."""
-        return full_quality(live, converged_photons=False)
-
-    def _target(self, size: tuple[int, int]) -> moderngl.Framebuffer:
-        if self._fbo is None or self._color is None or self._color.size != size:
-            self._release_target()
-            self._color = self.ctx.texture(size, 4)
-            self._color.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self._fbo = self.ctx.framebuffer([self._color])
-        return self._fbo
+        # The full-quality half: the quality probe's reference with the live photon map, its
+        # own renderer without the overlay and the split.
+        self.reference = FullQualityReference(
+            ctx, converged_photons=False, passes=REFERENCE_PASSES, stream_in=stream_in
+        )
 
     def draw_reference(self, live: Renderer, scene: Scene, frame: FrameInput) -> moderngl.Texture:
         """The full-quality frame for ``live``'s settings and photon map into the target."""
-        settings = self.reference_settings(live.settings)
-        if self.renderer is None:
-            self.renderer = Renderer(self.ctx, settings, REFERENCE_PASSES)
-        self.renderer.settings = settings
-        if scene is not self._scene:
-            self.renderer.set_scene(scene, stream_in=self.stream_in)
-            self._scene = scene
-        self.renderer.set_photons(live.photons.photons)
-        eye = frame.eyes[0]
-        fbo = self._target((2 * eye.width, eye.height))
-        fbo.use()
-        fbo.clear(0.0, 0.0, 0.0, 1.0)
-        self.renderer.render(frame, fbo)
-        assert self._color is not None
-        return self._color
+        return self.reference.draw_texture(live.settings, scene, live.photons.photons, frame)
 
     def render(
         self,
@@ -100,24 +72,14 @@ class ABFrame:
 
     @property
     def errors(self) -> list[str]:
-        return self.renderer.errors if self.renderer is not None else []
+        return self.reference.errors
 
     def pass_ms(self) -> dict[str, float]:
         """The full-quality half's GPU times of its last frame."""
-        return self.renderer.pass_ms() if self.renderer is not None else {}
-
-    def _release_target(self) -> None:
-        for obj in (self._fbo, self._color):
-            if obj is not None:
-                obj.release()
-        self._fbo = self._color = None
+        return self.reference.pass_ms()
 
     def release(self) -> None:
-        self._release_target()
-        if self.renderer is not None:
-            self.renderer.release()
-            self.renderer = None
-        self._scene = None
+        self.reference.release()
 
 
 def draw_offscreen(

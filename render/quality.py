@@ -42,9 +42,19 @@ class FullQualityReference:
     ``converged_photons``: the reference gathers a converged photon map (which the caller
     traces and hands to :meth:`draw`) rather than the live one."""
 
-    def __init__(self, ctx: moderngl.Context, converged_photons: bool = False) -> None:
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        converged_photons: bool = False,
+        passes: tuple | None = None,
+        stream_in: bool = False,
+    ) -> None:
+        """``passes``: the reference renderer's pass list (the renderer's own by default);
+        ``stream_in``: huge texture sets arrive over the next frames, as in the live view."""
         self.ctx = ctx
         self.converged_photons = converged_photons
+        self.passes = passes
+        self.stream_in = stream_in
         self.renderer: Renderer | None = None
         self._scene: Scene | None = None
         self._color: moderngl.Texture | None = None
@@ -62,16 +72,20 @@ class FullQualityReference:
         if self._fbo is None or self._color is None or self._color.size != size:
             self._release_target()
             self._color = self.ctx.texture(size, 4)
+            self._color.filter = (moderngl.NEAREST, moderngl.NEAREST)  # sampled texel for texel
             self._fbo = self.ctx.framebuffer([self._color])
         return self._fbo
 
     def _prepare(self, live: Settings, scene: Scene, photons: PhotonMap | None) -> Renderer:
         ref_settings = self.settings_for(live)
         if self.renderer is None:
-            self.renderer = Renderer(self.ctx, ref_settings)
+            if self.passes is None:
+                self.renderer = Renderer(self.ctx, ref_settings)
+            else:
+                self.renderer = Renderer(self.ctx, ref_settings, self.passes)
         self.renderer.settings = ref_settings
         if scene is not self._scene:
-            self.renderer.set_scene(scene)
+            self.renderer.set_scene(scene, stream_in=self.stream_in)
             self._scene = scene
         self.renderer.set_photons(photons)
         return self.renderer
@@ -83,6 +97,23 @@ class FullQualityReference:
         eye = frame.eyes[0]
         renderer = self._prepare(live, scene, photons)
         return read_frame(self.ctx, self.target((2 * eye.width, eye.height)), renderer, frame)
+
+    def draw_texture(
+        self, live: Settings, scene: Scene, photons: PhotonMap | None, frame: FrameInput
+    ) -> moderngl.Texture:
+        """``frame`` at full quality into the target, left on the GPU (no read-back)."""
+        eye = frame.eyes[0]
+        renderer = self._prepare(live, scene, photons)
+        fbo = self.target((2 * eye.width, eye.height))
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 1.0)
+        renderer.render(frame, fbo)
+        assert self._color is not None
+        return self._color
+
+    def pass_ms(self) -> dict[str, float]:
+        """The reference's GPU times of its last frame."""
+        return self.renderer.pass_ms() if self.renderer is not None else {}
 
     def object_ids(self, frame: FrameInput) -> np.ndarray:
         """Mesh index under each pixel of both eyes side by side (after :meth:`draw`)."""
