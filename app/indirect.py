@@ -207,6 +207,10 @@ def trace(
         cancel=cancel,
         daylight=daylight,
     )
+    if settings.indirect == "cache":  # here, on the worker thread, not in the first frame
+        from app.irradiance_cache import cache_for
+
+        cache_for(photons, settings.radius_m)
     log.info(
         "traced %d photon paths in %s: %d photons stored, %.0f ms",
         settings.photons,

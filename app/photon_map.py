@@ -61,6 +61,8 @@ class PhotonMap:
     emitted: int = 0  # photon paths started from the lights
     seed: int = 0
     notes: list[str] = field(default_factory=list)  # fallbacks taken while tracing
+    # What is computed from these photons once and kept with them (app.irradiance_cache).
+    derived: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.positions = np.ascontiguousarray(self.positions, np.float32).reshape(-1, 3)

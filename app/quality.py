@@ -40,6 +40,7 @@ def full_quality(settings: Settings, converged_photons: bool = True) -> Settings
         ref.photons.photons = CONVERGED_PHOTONS
         ref.photons.radius_m = CONVERGED_RADIUS_M
     ref.photons.gather = "radius"
+    ref.photons.indirect = "gather"  # the converged reference is the paper's gather
     ref.photons.fused = False
     ref.photons.stereo_reuse = False
     ref.photons.show_reuse = False

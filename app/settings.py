@@ -779,6 +779,16 @@ class PhotonSettings:
         choices=("scene", "on", "off"),
         choice_labels={"scene": "As the scene asks", "on": "On", "off": "Off"},
     )
+    indirect: str = _opt(
+        "cache",
+        "How each pixel gets its bounced light: looked up from light worked out once when "
+        "the photons are traced (fast enough to walk), or collected from the photons around "
+        "it every frame (the paper's method: slow, for its tables and the reference pictures).",
+        label="Indirect light method",
+        paper="Christensen 1999: precomputed irradiance; photon paper: per-pixel gather",
+        choices=("cache", "gather"),
+        choice_labels={"cache": "Precomputed (fast)", "gather": "Collected per pixel (paper)"},
+    )
     photons: int = _opt(
         65536,
         "How many light paths are traced from the lights; more is smoother and slower "

@@ -106,6 +106,7 @@ TEXTURE_UNITS = {
             "sky",  # the baked sky (render.sky)
             "gb_sky",  # the G-buffer's sky visibility
             "shadow_atlas",  # the shadow maps' depth atlas (bound once per frame)
+            "irradiance_cache",  # the photon map's irradiance cache (render/photons.py)
         )
     )
 }

@@ -19,6 +19,7 @@ import time
 import moderngl
 import numpy as np
 
+from app.irradiance_cache import cache_for
 from app.photon_map import PhotonMap
 from app.settings import PhotonSettings
 from render.pass_graph import (
@@ -30,6 +31,7 @@ from render.pass_graph import (
     set_uniforms,
 )
 from render.passes import deferred
+from render.irradiance_cache import GpuIrradianceCache
 from render.photon_gather import NO_WINNER, STRUCTURE_OF, GpuPhotonMap, PhotonGather
 from render.shaders import ShaderLibrary
 
@@ -51,6 +53,9 @@ class PhotonPass(RenderPass):
         self.photons: PhotonMap | None = None
         self.gmap: GpuPhotonMap | None = None
         self._gmap_key: tuple | None = None
+        self.cache: GpuIrradianceCache | None = None  # photons.indirect = cache
+        self._cache_key: tuple | None = None
+        self.cache_builds = 0  # caches uploaded (a new photon map or radius builds one)
         self.outputs: list[moderngl.Texture] = []
         self.winner: moderngl.Texture | None = None
         self._clear_winner = b""
@@ -64,11 +69,33 @@ class PhotonPass(RenderPass):
         if photons is not self.photons:
             self.photons = photons
             self._drop_map()
+            self._drop_cache()
 
     def _drop_map(self) -> None:
         if self.gmap is not None:
             self.gmap.release()
         self.gmap, self._gmap_key = None, None
+
+    def _drop_cache(self) -> None:
+        if self.cache is not None:
+            self.cache.release()
+        self.cache, self._cache_key = None, None
+
+    def _ensure_cache(self, photons: PhotonMap) -> GpuIrradianceCache | None:
+        """The irradiance cache of ``photons`` on the GPU (built on the photon service's worker
+        thread after the trace; built here if the radius changed since)."""
+        key = (id(photons), self.settings.radius_m)
+        if key != self._cache_key:
+            self._drop_cache()
+            self._cache_key = key
+            self.error = None
+            try:
+                self.cache = GpuIrradianceCache(self.ctx, cache_for(photons, key[1]))
+                self.cache_builds += 1
+            except (ValueError, moderngl.Error) as exc:
+                self.error = str(exc)
+                log.warning("no indirect light: %s", exc)
+        return self.cache
 
     def _ensure_map(self, photons: PhotonMap) -> GpuPhotonMap | None:
         s = self.settings
@@ -106,12 +133,16 @@ class PhotonPass(RenderPass):
     def configure(self, settings, scene, frame) -> bool:
         self.settings = settings.photons
         # Gather only at the block samples when CPS lights the blocks.
-        self.block_rate = deferred(settings) and settings.cps.mode == "cps"
+        cached = settings.photons.indirect == "cache"
+        self.block_rate = deferred(settings) and settings.cps.mode == "cps" and not cached
         self.reads = ("depth", "normal", "levels") if self.block_rate else ("depth", "normal")
         return deferred(settings) and self.photons is not None
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         if self.photons is None:
+            return
+        if self.settings.indirect == "cache":
+            self._lookup(frame, res)
             return
         gmap = self._ensure_map(self.photons)
         if gmap is None:
@@ -153,6 +184,31 @@ class PhotonPass(RenderPass):
             self.eye_ms[index] = self._mark() - start if self.measure else 0.0
         res.put("indirect", list(self.outputs))
         res.put("show_reuse", s.show_reuse and reuse)
+
+    def _lookup(self, frame: FrameContext, res: Resources) -> None:
+        """Each eye's irradiance looked up in the cache (no gather, no stereo reuse)."""
+        assert self.photons is not None
+        cache = self._ensure_cache(self.photons)
+        if cache is None:
+            return
+        size = res.targets[0].size
+        self._ensure_targets(size)
+        for index, (eye, tgt) in enumerate(zip(frame.eyes, res.targets)):
+            start = self._mark()
+            cache.lookup_image(
+                self.shaders,
+                depth=tgt.depth,
+                normal=tgt.normal,
+                inv_view_projection=eye.inverse_view_projection,
+                size=size,
+                out=self.outputs[index],
+            )
+            self.eye_ms[index] = self._mark() - start if self.measure else 0.0
+        self.ctx.memory_barrier(
+            moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+        )
+        res.put("indirect", list(self.outputs))
+        res.put("show_reuse", False)
 
     def _mark(self) -> float:
         if not self.measure:
@@ -198,6 +254,7 @@ class PhotonPass(RenderPass):
             or self.photons is None
             or self.gmap is None
             or self.settings.fused
+            or self.settings.indirect == "cache"
         ):
             return {}
         tex = self.outputs[1]
@@ -227,5 +284,6 @@ class PhotonPass(RenderPass):
     def release(self) -> None:
         super().release()
         self._drop_map()
+        self._drop_cache()
         self._release_targets()
         self.gather.release()

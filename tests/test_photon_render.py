@@ -65,6 +65,7 @@ def photon_settings(**values) -> Settings:
     s.photons.enabled = "on"
     s.photons.photons = 1 << 14
     s.photons.radius_m = 0.4
+    s.photons.indirect = "gather"  # these tests check the paper's gather itself
     for key, value in values.items():
         s.set(key.replace("__", "."), value)
     return s

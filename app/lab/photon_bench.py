@@ -97,6 +97,7 @@ def run_sets(count: str, paper_radius: float, sets: tuple[str, ...]) -> tuple[st
     )  # the paper's Tables 1-4 render the eyes separately
     return (
         "photons.enabled=on",
+        "photons.indirect=gather",  # the paper's tables time its gather
         f"photons.photons={COUNTS[count]}",
         f"photons.radius_m={radius_m(paper_radius)}",
         *sets,

@@ -102,7 +102,7 @@ def _photon_matrix() -> Matrix:
     indirect light."""
     from app.lab.photon_bench import COUNTS, radius_m
 
-    base = ("photons.enabled=on", "photons.stereo_reuse=true")
+    base = ("photons.enabled=on", "photons.indirect=gather", "photons.stereo_reuse=true")
     runs: list[tuple[str, tuple[str, ...]]] = [
         (
             FULL,

@@ -1,0 +1,173 @@
+"""A world-space irradiance cache from a photon map: one texture lookup instead of a gather.
+
+Christensen 1999 (faster photon map global illumination) precomputes irradiance at a set of
+points once per photon map, so that rendering looks it up instead of gathering photons per
+pixel. Here the points sit on a regular grid of cells of edge ``radius / 2`` (15 cm at the
+default 30 cm radius, so a cell is always smaller than the blur the gather itself makes): every
+cell that holds photons gets one cache point, the mean position of its photons (on the surface
+they landed on), and at that point the irradiance for six normal directions (+X, -X, +Y, -Y,
++Z, -Z: an "ambient cube") with the same estimate as the gather (``app.lab.photon_ref``):
+
+    E(P, N) = sum(power of the photons within r that arrived against N) / (pi r^2)
+
+A pixel with normal N looks up the three directions on N's side, weighted by N's squared
+components, each interpolated trilinearly between the neighbouring cells
+(``render/shaders/irradiance_cache.comp.glsl``). A cell with no photons has weight 0 and the
+interpolation is normalised by the weights, so empty air next to a surface does not darken it.
+
+The cache is built with scipy's cKDTree on the CPU (a second or two for 64k photons), on the
+photon service's worker thread right after a trace (``app.indirect``), and kept on the
+``PhotonMap`` per radius (``cache_for``) so the renderer only uploads it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.hashgrid import check_radius
+from app.photon_map import PhotonMap
+
+BUCKETS = 6  # +X, -X, +Y, -Y, +Z, -Z
+MAX_CELLS = 1 << 19  # cells in the dense grid at most (the cell grows beyond): 6 x 8 MB
+_CHUNK = 4096  # cache points per cKDTree query (bounds the pair lists' memory)
+
+
+@dataclass
+class IrradianceCache:
+    """Irradiance per cell and normal direction on a dense grid.
+
+    ``values`` is (6, Z, Y, X, 4) float32: rgb = E (linear, the photon map's units), a = 1 where
+    the cell holds photons, 0 where it is empty; the cell (i, j, k) spans
+    ``origin + cell * [i, j, k]`` to ``origin + cell * [i + 1, j + 1, k + 1]``.
+    """
+
+    origin: np.ndarray  # (3,) float32, corner of cell (0, 0, 0)
+    cell: float
+    dims: tuple[int, int, int]  # cells along x, y, z
+    values: np.ndarray
+    radius: float
+    points: int  # cache points (cells with photons)
+    build_ms: float = 0.0
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.values.nbytes)
+
+    def lookup(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """E (M, 3) at world points with unit normals, as the shader interpolates it (a CPU
+        twin of ``irradiance_cache.comp.glsl``, for tests and tools)."""
+        pts = np.asarray(points, np.float64).reshape(-1, 3)
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+        out = np.zeros((len(pts), 3))
+        if self.points == 0 or len(pts) == 0:
+            return out
+        dims = np.array(self.dims)
+        g = (pts - self.origin) / self.cell - 0.5  # texel-centre coordinates
+        g = np.clip(g, 0.0, dims - 1.0)
+        base = np.minimum(np.floor(g).astype(np.int64), np.maximum(dims - 2, 0))
+        f = g - base
+        n2 = nrm * nrm
+        for axis in range(3):
+            bucket = np.where(nrm[:, axis] >= 0.0, 2 * axis, 2 * axis + 1)
+            acc = np.zeros((len(pts), 4))
+            for corner in range(8):
+                o = np.array([(corner >> a) & 1 for a in range(3)])
+                idx = np.minimum(base + o, dims - 1)
+                w = np.prod(np.where(o == 1, f, 1.0 - f), axis=1)
+                acc += w[:, None] * self.values[bucket, idx[:, 2], idx[:, 1], idx[:, 0]]
+            safe = np.where(acc[:, 3] > 1e-6, acc[:, 3], 1.0)
+            e = np.where(acc[:, 3:4] > 1e-6, acc[:, :3] / safe[:, None], 0.0)
+            out += n2[:, axis : axis + 1] * e
+        return out
+
+
+def empty_cache(radius: float) -> IrradianceCache:
+    return IrradianceCache(
+        np.zeros(3, np.float32),
+        1.0,
+        (1, 1, 1),
+        np.zeros((BUCKETS, 1, 1, 1, 4), np.float32),
+        radius,
+        0,
+    )
+
+
+def build_cache(photons: PhotonMap, radius: float, cell: float | None = None) -> IrradianceCache:
+    """The cache of ``photons`` for gather radius ``radius`` (cells of ``cell``, default r/2)."""
+    import time
+
+    from scipy.spatial import cKDTree
+
+    start = time.perf_counter()
+    r = check_radius(radius)
+    pos = np.asarray(photons.positions, np.float64)
+    finite = np.isfinite(pos).all(axis=1) & np.isfinite(photons.power).all(axis=1)
+    if len(photons) == 0 or not finite.any():
+        return empty_cache(r)
+    pos = pos[finite]
+    power = np.asarray(photons.power, np.float64)[finite]
+    dirs = photons.directions.astype(np.float64)[finite]
+    lo, hi = pos.min(axis=0), pos.max(axis=0)
+    c = float(cell) if cell is not None else r / 2.0
+    if not (math.isfinite(c) and c > 0.0):
+        raise ValueError(f"cache cell must be a positive length, not {cell!r}")
+    while True:  # a dense grid: grow the cell until it fits
+        dims = np.maximum(np.ceil((hi - lo) / c + 1e-6).astype(np.int64), 1)
+        if int(np.prod(dims)) <= MAX_CELLS:
+            break
+        c *= 1.25
+    origin = lo - 0.5 * (dims * c - (hi - lo))  # centre the photons in the grid
+    ijk = np.clip(((pos - origin) / c).astype(np.int64), 0, dims - 1)
+    flat = (ijk[:, 2] * dims[1] + ijk[:, 1]) * dims[0] + ijk[:, 0]
+    occupied, inverse, counts = np.unique(flat, return_inverse=True, return_counts=True)
+    centre = np.stack([np.bincount(inverse, weights=pos[:, a]) / counts for a in range(3)], axis=1)
+    m = len(occupied)
+    e = np.zeros((m, BUCKETS, 3))
+    tree = cKDTree(pos)
+    r2 = r * r
+    for a in range(0, m, _CHUNK):
+        b = min(m, a + _CHUNK)
+        lists = tree.query_ball_point(centre[a:b], r * (1 + 1e-12), return_sorted=False)
+        lens = np.fromiter(map(len, lists), np.int64, count=b - a)
+        if lens.sum() == 0:
+            continue
+        pid = np.repeat(np.arange(b - a), lens)
+        ph = np.concatenate([np.asarray(x, np.int64) for x in lists if len(x)])
+        d = pos[ph] - centre[a:b][pid]
+        keep = (d * d).sum(axis=1) < r2
+        pid, ph = pid[keep], ph[keep]
+        for axis in range(3):
+            comp = dirs[ph, axis]
+            for bucket, arrived in ((2 * axis, comp < 0.0), (2 * axis + 1, comp > 0.0)):
+                for ch in range(3):
+                    e[a:b, bucket, ch] = np.bincount(
+                        pid[arrived], weights=power[ph[arrived], ch], minlength=b - a
+                    )
+    e /= math.pi * r2
+    values = np.zeros((BUCKETS, int(np.prod(dims)), 4), np.float32)
+    values[:, occupied, :3] = e.transpose(1, 0, 2)
+    values[:, occupied, 3] = 1.0
+    values = values.reshape(BUCKETS, int(dims[2]), int(dims[1]), int(dims[0]), 4)
+    return IrradianceCache(
+        origin.astype(np.float32),
+        c,
+        (int(dims[0]), int(dims[1]), int(dims[2])),
+        values,
+        r,
+        m,
+        (time.perf_counter() - start) * 1e3,
+    )
+
+
+def cache_for(photons: PhotonMap, radius: float) -> IrradianceCache:
+    """The cache of ``photons`` at ``radius``, built once and kept on the map (a worker thread
+    builds it after tracing; the renderer then finds it ready)."""
+    key = ("irradiance_cache", float(radius))
+    cache = photons.derived.get(key)
+    if cache is None:
+        cache = build_cache(photons, radius)
+        photons.derived[key] = cache
+    return cache

@@ -1,0 +1,67 @@
+"""The irradiance cache on the GPU: one 3D texture, one lookup per pixel.
+
+``GpuIrradianceCache`` uploads an ``app.irradiance_cache.IrradianceCache`` (its six direction
+grids stacked along z with an empty slice between them, linearly filtered) and
+``lookup_image`` writes an eye's irradiance E into the same rgba32f target the photon gather
+fills (``irradiance_cache.comp.glsl``), so the deferred lighting uses it unchanged.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from app.camera import gl_bytes
+from app.irradiance_cache import BUCKETS, IrradianceCache
+from render.pass_graph import bind_image, bind_texture, set_uniforms
+from render.shaders import ShaderLibrary
+
+
+class GpuIrradianceCache:
+    def __init__(self, ctx: moderngl.Context, cache: IrradianceCache) -> None:
+        self.ctx = ctx
+        self.cache = cache
+        x, y, z = cache.dims
+        slab = np.zeros((BUCKETS, z + 1, y, x, 4), np.float32)
+        slab[:, :z] = cache.values  # slice z of each is empty: weight 0 between directions
+        self.texture = ctx.texture3d((x, y, BUCKETS * (z + 1)), 4, slab.tobytes(), dtype="f4")
+        self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.texture.repeat_x = self.texture.repeat_y = self.texture.repeat_z = False
+
+    @property
+    def nbytes(self) -> int:
+        x, y, z = self.cache.dims
+        return x * y * BUCKETS * (z + 1) * 16
+
+    def lookup_image(
+        self,
+        shaders: ShaderLibrary,
+        *,
+        depth: moderngl.Texture,
+        normal: moderngl.Texture,
+        inv_view_projection: np.ndarray,
+        size: tuple[int, int],
+        out: moderngl.Texture,
+    ) -> None:
+        """E per G-buffer pixel into ``out`` (rgba32f): rgb = E, a = 1, background 0."""
+        prog = shaders.compute("irradiance_cache.comp.glsl")
+        c = self.cache
+        bind_texture(prog, "gb_normal", normal)
+        bind_texture(prog, "gb_depth", depth)
+        bind_texture(prog, "irradiance_cache", self.texture)
+        w, h = int(size[0]), int(size[1])
+        set_uniforms(
+            prog,
+            {
+                "u_inv_view_projection": gl_bytes(np.asarray(inv_view_projection)),
+                "u_size": (w, h),
+                "u_ic_origin": tuple(float(v) for v in c.origin),
+                "u_ic_cell": float(c.cell),
+                "u_ic_dims": tuple(int(v) for v in c.dims),
+            },
+        )
+        bind_image(out, "out")
+        prog.run(-(-w // 8), -(-h // 8))
+
+    def release(self) -> None:
+        self.texture.release()

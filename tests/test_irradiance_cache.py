@@ -1,0 +1,114 @@
+"""The irradiance cache (photons.indirect = cache): close to the gather it replaces, darker in
+corners than on open floor, rebuilt for new photons, nothing at all from an empty map."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from app.irradiance_cache import build_cache, cache_for
+from app.lab.photon_ref import estimate_radius
+from app.photon_map import PhotonMap
+from app.photons import trace_photons
+from render.offscreen import OffscreenHost
+from tests.test_photon_render import box_room, eye_frame, gbuffer_points, photon_settings
+
+W, H = 160, 90
+
+
+def indirect_of(host: OffscreenHost) -> np.ndarray:
+    """The left eye's irradiance E (H, W, 3) of the last frame."""
+    with host.ctx:
+        return host.renderer.photons.read_indirect(0)[..., :3]
+
+
+def traced(scene=None, count: int = 1 << 15) -> PhotonMap:
+    return trace_photons(scene or box_room(), count, 0)
+
+
+def test_cache_agrees_with_the_gather_on_the_floor_and_is_darker_in_a_corner():
+    photons = traced()
+    r = 0.4
+    cache = build_cache(photons, r)
+    assert cache.points > 0 and np.isfinite(cache.values).all()
+    rng = np.random.default_rng(1)
+    floor = np.column_stack([rng.uniform(-2.0, 2.0, 64), np.zeros(64), rng.uniform(-2.0, 3.0, 64)])
+    up = np.tile([0.0, 1.0, 0.0], (64, 1))
+    got = cache.lookup(floor, up)
+    want = estimate_radius(photons, floor, up, r)
+    assert want.mean() > 0
+    rel = np.abs(got - want).mean() / want.mean()
+    assert rel < 0.15, rel
+    # A floor point in the corner by two walls gets less than the open floor around it.
+    corner = cache.lookup(np.array([[-2.95, 0.0, -2.95]]), up[:1])
+    assert corner.mean() < 0.8 * got.mean()
+
+
+def test_empty_and_broken_maps_give_no_indirect_light():
+    empty = build_cache(PhotonMap.empty(), 0.3)
+    assert empty.points == 0
+    assert (empty.lookup(np.zeros((3, 3)), np.tile([0, 1, 0], (3, 1))) == 0).all()
+    nan = PhotonMap(np.full((4, 3), np.nan), np.ones((4, 3)), np.zeros(4, np.uint32))
+    assert build_cache(nan, 0.3).points == 0
+    s = photon_settings(photons__indirect="cache")
+    with OffscreenHost(W, H, s) as host:
+        host.set_scene(box_room())
+        # A trace that stored no photon at all (every light outside the room, say).
+        host.photon_cache.ensure = lambda *args, **kw: PhotonMap.empty()  # type: ignore
+        img = host.draw(eye_frame(host))
+        assert np.isfinite(img).all()
+        assert host.renderer.photons.error is None
+        ind = indirect_of(host)
+        assert (ind[..., :3] == 0).all()
+
+
+def test_picture_with_the_cache_is_close_to_the_gathers():
+    s = photon_settings(photons__indirect="gather")
+    with OffscreenHost(W, H, s) as host:
+        host.set_scene(box_room())
+        fi = eye_frame(host)
+        gather = host.draw(fi).astype(np.float64)
+        e_gather = indirect_of(host)
+        s.photons.indirect = "cache"
+        cached = host.draw(fi).astype(np.float64)
+        e_cache = indirect_of(host)
+        _, _, lit = gbuffer_points(host, 0, fi)
+        off = host.renderer.photons
+        assert off.cache is not None and off.cache_builds == 1
+    lit = np.flipud(lit)
+    assert e_gather[lit].mean() > 0
+    rel = np.abs(e_cache[lit] - e_gather[lit]).mean() / e_gather[lit].mean()
+    assert rel < 0.2, rel
+    assert np.abs(cached - gather).mean() < 3.0  # 8-bit levels, both eyes
+
+
+def test_a_changed_light_rebuilds_the_cache():
+    s = photon_settings(photons__indirect="cache")
+    room = box_room()
+    with OffscreenHost(W, H, s) as host:
+        host.set_scene(room)
+        fi = eye_frame(host)
+        host.draw(fi)
+        first = host.renderer.photons.cache
+        assert first is not None and host.renderer.photons.cache_builds == 1
+        e_first = indirect_of(host).mean()
+        light = dataclasses.replace(room.lights[0], intensity=room.lights[0].intensity * 2)
+        host.set_scene(dataclasses.replace(room, lights=[light]))
+        host.draw(fi)
+        p = host.renderer.photons
+        assert p.cache is not None and p.cache is not first and p.cache_builds == 2
+        assert indirect_of(host).mean() > 1.5 * e_first
+
+
+def test_the_service_builds_the_cache_with_the_trace():
+    s = photon_settings(photons__indirect="cache")
+    with OffscreenHost(W, H, s) as host:
+        host.set_scene(box_room())
+        photons = host.photon_cache.ensure(s.photons, host.scene)
+        assert photons is not None
+        assert ("irradiance_cache", s.photons.radius_m) in photons.derived
+        assert (
+            cache_for(photons, s.photons.radius_m)
+            is photons.derived[("irradiance_cache", s.photons.radius_m)]
+        )
