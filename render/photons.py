@@ -22,6 +22,7 @@ import numpy as np
 from app.irradiance_cache import cache_for
 from app.photon_map import PhotonMap
 from app.settings import PhotonSettings
+from render.irradiance_cache import GpuIrradianceCache
 from render.pass_graph import (
     FrameContext,
     RenderPass,
@@ -31,7 +32,6 @@ from render.pass_graph import (
     set_uniforms,
 )
 from render.passes import deferred
-from render.irradiance_cache import GpuIrradianceCache
 from render.photon_gather import NO_WINNER, STRUCTURE_OF, GpuPhotonMap, PhotonGather
 from render.shaders import ShaderLibrary
 
