@@ -8,6 +8,8 @@ fills (``irradiance_cache.comp.glsl``), so the deferred lighting uses it unchang
 
 from __future__ import annotations
 
+from typing import cast
+
 import moderngl
 import numpy as np
 
@@ -48,7 +50,9 @@ class GpuIrradianceCache:
         c = self.cache
         bind_texture(prog, "gb_normal", normal)
         bind_texture(prog, "gb_depth", depth)
-        bind_texture(prog, "irradiance_cache", self.texture)
+        bind_texture(
+            prog, "irradiance_cache", cast(moderngl.Texture, self.texture)
+        )  # 3D: same use()
         w, h = int(size[0]), int(size[1])
         set_uniforms(
             prog,
