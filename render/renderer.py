@@ -361,6 +361,13 @@ class Renderer:
             )
         elif g is not None:
             out["grid"] = f"kd-tree of {g.photon_count:,} photons, built in {g.build_ms:.0f} ms"
+        elif p.cache is not None:
+            c = p.cache.cache
+            x, y, z = c.dims
+            out["grid"] = (
+                f"irradiance cache: {c.points:,} of {x}x{y}x{z} cells of {100 * c.cell:.3g} cm, "
+                f"built in {c.build_ms:.0f} ms"
+            )
         if p.enabled:
             out.update(p.reuse_stats())
         return out

@@ -120,6 +120,7 @@ def rig(tmp_path_factory):
     s = Settings()
     s.render.overlay = False
     s.photons.photons = 4096
+    s.photons.indirect = "gather"  # the gather variants and their grids (the cache: its own test)
     with OffscreenHost(W, H, s) as host:
         host.set_scene(scene)
         session = Session(s)

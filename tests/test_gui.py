@@ -244,6 +244,7 @@ def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, q
     assert panel.labels["status"].text().startswith("off (the scene does not ask")
     assert window.photon_cache.map is None  # nothing traced for a scene that does not ask
     before = grab(window)
+    s.photons.indirect = "gather"  # the paper's gather: its grid, reuse and overlay
     panel.controls.editors["photons.photons"].setValue(4096)
     panel.controls.editors["photons.radius_m"].setValue(0.4)
     enabled = panel.controls.editors["photons.enabled"]
