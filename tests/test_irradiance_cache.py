@@ -112,3 +112,18 @@ def test_the_service_builds_the_cache_with_the_trace():
             cache_for(photons, s.photons.radius_m)
             is photons.derived[("irradiance_cache", s.photons.radius_m)]
         )
+
+
+def test_cache_under_coarse_shading_lights_every_block():
+    s = photon_settings(photons__indirect="cache", cps__mode="cps")
+    with OffscreenHost(W, H, s) as host:
+        host.set_scene(box_room())
+        fi = eye_frame(host)
+        img = host.draw(fi)
+        assert not host.renderer.errors, host.renderer.errors
+        _, _, lit = gbuffer_points(host, 0, fi)
+        e = indirect_of(host)
+        s.photons.enabled = "off"
+        dark = host.draw(fi)
+    assert (e[np.flipud(lit)].sum(axis=-1) > 0).mean() > 0.95  # every surface pixel looked up
+    assert img.astype(float).mean() > dark.astype(float).mean() + 1.0  # bounced light added
