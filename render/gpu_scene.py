@@ -25,6 +25,7 @@ from app.ao_bake import BackgroundBake
 from app.scene import Light, Material, Scene, Texture
 from app.tangents import generate_tangents
 from render.constants import MAX_LIGHTS
+from render.culling import Chunks, chunk_mesh, frustum_planes, visible_ranges
 from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
@@ -55,6 +56,9 @@ class GpuMesh:
     tangents: bool = False  # the vertex buffer has a tangent (TANGENT_FORMAT)
     centre: tuple[float, float, float] = (0.0, 0.0, 0.0)  # bounding-box centre (blend order)
     maps: dict[str, moderngl.Texture] | None = None  # sampler name -> material map
+    # Ranges of the index buffer, each with its world-space bounds (render.culling): one for
+    # a small mesh, spatially coherent chunks of a big one.
+    chunks: Chunks | None = None
 
     @property
     def blended(self) -> bool:
@@ -119,12 +123,13 @@ class GpuScene:
                 columns.append(t)
             data = np.hstack(columns).astype(np.float32)
             lo, hi = m.bounds() if len(m.positions) else (np.zeros(3), np.zeros(3))
+            indices, chunks = chunk_mesh(m.positions, m.indices)
             centre = (lo + hi) * 0.5
             self.meshes.append(
                 GpuMesh(
                     m.name,
                     ctx.buffer(data.tobytes()),
-                    ctx.buffer(m.indices.astype(np.uint32).tobytes()),
+                    ctx.buffer(indices.astype(np.uint32).tobytes()),
                     mat,
                     mat.texture,
                     int(m.indices.size),
@@ -132,8 +137,11 @@ class GpuScene:
                     tangents,
                     (float(centre[0]), float(centre[1]), float(centre[2])),
                     maps,
+                    chunks,
                 )
             )
+        self.cull = True  # render.culling; off: every range drawn (the test's reference)
+        self.drawn: dict[int, int] = {}  # triangles drawn per view this frame (eye index)
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
@@ -214,6 +222,21 @@ class GpuScene:
         for sampler, tex in (mesh.maps or {}).items():
             if names is None or sampler in names:
                 bind_texture(prog, sampler, tex, optional=True)
+
+    def draw(
+        self, vao: moderngl.VertexArray, index: int, view_projection: np.ndarray | None = None
+    ) -> int:
+        """Draw mesh ``index`` through ``vao``: only its chunks inside the frustum of
+        ``view_projection`` (None: all of them). Returns the triangles drawn."""
+        chunks = self.meshes[index].chunks
+        if chunks is None or view_projection is None or not self.cull:
+            vao.render(moderngl.TRIANGLES)
+            return self.meshes[index].vertex_count // 3
+        drawn = 0
+        for first, count in visible_ranges(chunks, frustum_planes(view_projection)):
+            vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+            drawn += count
+        return drawn // 3
 
     def vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
         key = (program.glo, index)

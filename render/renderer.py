@@ -404,6 +404,11 @@ class Renderer:
         scene = self.gpu_scene or self._empty  # the scene the frame drew (as frame_context)
         return LightCullPass.evaluations(self.targets, len(scene.lights))
 
+    def triangles_drawn(self) -> list[int]:
+        """Triangles the last frame's geometry pass drew per eye (after frustum culling)."""
+        drawn = (self.gpu_scene or self._empty).drawn
+        return [drawn.get(i, 0) for i in range(2)]
+
     def texture_resident_bytes(self) -> int:
         return self.gpu_scene.texture_bytes if self.gpu_scene is not None else 0
 
