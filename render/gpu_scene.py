@@ -22,10 +22,11 @@ import moderngl
 import numpy as np
 
 from app.ao_bake import BackgroundBake
+from app.camera import EyeView
 from app.scene import Light, Material, Scene, Texture
 from app.tangents import generate_tangents
 from render.constants import MAX_LIGHTS
-from render.culling import Chunks, chunk_mesh, frustum_planes, visible_ranges
+from render.culling import Chunks, chunk_mesh, frustum_planes, lod_levels, visible_ranges
 from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
@@ -123,7 +124,11 @@ class GpuScene:
                 columns.append(t)
             data = np.hstack(columns).astype(np.float32)
             lo, hi = m.bounds() if len(m.positions) else (np.zeros(3), np.zeros(3))
-            indices, chunks = chunk_mesh(m.positions, m.indices)
+            lod = m.lod
+            if lod is not None and lod.source_triangles == m.triangle_count:
+                indices, chunks = lod.triangles, lod.chunks  # app.lod: built at load
+            else:
+                indices, chunks = chunk_mesh(m.positions, m.indices)
             centre = (lo + hi) * 0.5
             self.meshes.append(
                 GpuMesh(
@@ -132,7 +137,7 @@ class GpuScene:
                     ctx.buffer(indices.astype(np.uint32).tobytes()),
                     mat,
                     mat.texture,
-                    int(m.indices.size),
+                    int(m.indices.size),  # the full level's index count
                     ctx.buffer(np.zeros((max(len(m.positions), 1), 2), np.float32).tobytes()),
                     tangents,
                     (float(centre[0]), float(centre[1]), float(centre[2])),
@@ -142,6 +147,7 @@ class GpuScene:
             )
         self.cull = True  # render.culling; off: every range drawn (the test's reference)
         self.drawn: dict[int, int] = {}  # triangles drawn per view this frame (eye index)
+        self.lod_bias = 0.0  # render.lod_bias: pixels a simplified level may stray (0: full)
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
@@ -224,16 +230,27 @@ class GpuScene:
                 bind_texture(prog, sampler, tex, optional=True)
 
     def draw(
-        self, vao: moderngl.VertexArray, index: int, view_projection: np.ndarray | None = None
+        self,
+        vao: moderngl.VertexArray,
+        index: int,
+        view_projection: np.ndarray | None = None,
+        eye: EyeView | None = None,
     ) -> int:
         """Draw mesh ``index`` through ``vao``: only its chunks inside the frustum of
-        ``view_projection`` (None: all of them). Returns the triangles drawn."""
+        ``view_projection`` (None: all of them), each at the level of detail ``lod_bias``
+        allows seen from ``eye`` (None: full detail). Returns the triangles drawn."""
         chunks = self.meshes[index].chunks
-        if chunks is None or view_projection is None or not self.cull:
-            vao.render(moderngl.TRIANGLES)
+        if chunks is None:
+            return 0
+        if view_projection is None or not self.cull:
+            vao.render(moderngl.TRIANGLES, vertices=self.meshes[index].vertex_count)
             return self.meshes[index].vertex_count // 3
+        levels = None
+        if eye is not None and self.lod_bias > 0 and chunks.levels > 1:
+            pixels_per_radian = float(eye.projection[1, 1]) * eye.height * 0.5
+            levels = lod_levels(chunks, eye.position, pixels_per_radian, self.lod_bias)
         drawn = 0
-        for first, count in visible_ranges(chunks, frustum_planes(view_projection)):
+        for first, count in visible_ranges(chunks, frustum_planes(view_projection), levels):
             vao.render(moderngl.TRIANGLES, vertices=count, first=first)
             drawn += count
         return drawn // 3

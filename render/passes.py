@@ -154,7 +154,7 @@ def _draw_meshes(
             set_uniforms(prog, {}, optional={"u_level": float(level - resident.base)})
         # Only the TCR_TINT variant paints the level.
         set_uniforms(prog, {}, optional={"u_tint": level_tint(level)})
-        drawn += scene.draw(scene.vao(prog, index), index, eye.view_projection)
+        drawn += scene.draw(scene.vao(prog, index), index, eye.view_projection, eye)
     return drawn
 
 
@@ -400,7 +400,7 @@ class EmissivePass(RenderPass):
                 )
                 uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
                 scene.bind_material(prog, index)
-                scene.draw(scene.vao(prog, index), index, eye.view_projection)
+                scene.draw(scene.vao(prog, index), index, eye.view_projection, eye)
             tgt.forward.depth_mask = True
         ctx.depth_func = "<"
         ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
@@ -734,7 +734,7 @@ class ObjectIdPass(RenderPass):
                 set_uniforms(prog, {"u_view_projection": eye.view_projection})
                 scene.bind_material(prog, index, ("albedo",))
                 uniform(prog, "u_id").value = float(index + 1)
-                scene.draw(scene.vao(prog, index), index, eye.view_projection)
+                scene.draw(scene.vao(prog, index), index, eye.view_projection, eye)
             data = np.frombuffer(ids.read(), np.float32).reshape(ids.size[1], ids.size[0])
             self.result.append(np.flipud(data).astype(np.int32) - 1)
         self.ctx.disable(moderngl.DEPTH_TEST)

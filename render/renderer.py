@@ -304,6 +304,7 @@ class Renderer:
         self.step_exposure()
         self._sync_lights()
         ctx = self.frame_context(frame, out, origin, split)
+        ctx.scene.lod_bias = self.settings.render.lod_bias  # cheap: the governor moves it
         enabled = self.configure(ctx)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
