@@ -13,7 +13,14 @@ import numpy as np
 
 from app.lod import Chunks, chunk_mesh
 
-__all__ = ["Chunks", "chunk_mesh", "frustum_planes", "lod_levels", "visible_ranges"]
+__all__ = [
+    "Chunks",
+    "chunk_mesh",
+    "frustum_planes",
+    "lod_levels",
+    "merge_chunks",
+    "visible_ranges",
+]
 
 _planes_cache: tuple[bytes, np.ndarray] | None = None
 
@@ -57,20 +64,48 @@ def lod_levels(
     return (ok.shape[0] - 1 - np.argmax(ok[::-1], axis=0)).astype(np.int64)
 
 
+def merge_chunks(per_mesh: list[Chunks | None]) -> tuple[Chunks, np.ndarray]:
+    """All meshes' chunks as one table (a mesh with fewer levels repeats its coarsest) and
+    the mesh each row belongs to."""
+    present = [(i, c) for i, c in enumerate(per_mesh) if c is not None]
+    if not present:
+        z = np.zeros((1, 0), np.int64)
+        return Chunks(z, z, np.zeros((1, 0)), np.zeros((0, 3)), np.zeros((0, 3))), z[0]
+    levels = max(c.levels for _, c in present)
+
+    def padded(a: np.ndarray) -> np.ndarray:
+        return np.concatenate([a, np.repeat(a[-1:], levels - a.shape[0], axis=0)])
+
+    owner = np.concatenate([np.full(c.first.shape[1], i, np.int64) for i, c in present])
+    table = Chunks(
+        np.concatenate([padded(c.first) for _, c in present], axis=1),
+        np.concatenate([padded(c.count) for _, c in present], axis=1),
+        np.concatenate([padded(c.error) for _, c in present], axis=1),
+        np.concatenate([c.lo for _, c in present]),
+        np.concatenate([c.hi for _, c in present]),
+    )
+    return table, owner
+
+
 def visible_ranges(
-    chunks: Chunks, planes: np.ndarray, levels: np.ndarray | None = None
-) -> list[tuple[int, int]]:
-    """(first, count) index ranges to draw (each chunk at ``levels``, default full),
-    neighbouring visible ranges merged."""
-    mask = visible_mask(chunks, planes)
+    chunks: Chunks,
+    planes: np.ndarray,
+    levels: np.ndarray | None = None,
+    owner: np.ndarray | None = None,
+) -> dict[int, list[tuple[int, int]]]:
+    """Per mesh (``owner`` of each chunk; default all one mesh, 0), the (first, count)
+    index ranges to draw, each chunk at ``levels`` (default full), neighbours merged."""
     n = chunks.first.shape[1]
+    mask = visible_mask(chunks, planes)
     lv = np.zeros(n, np.int64) if levels is None else levels
     firsts = chunks.first[lv, np.arange(n)][mask]
     counts = chunks.count[lv, np.arange(n)][mask]
-    out: list[tuple[int, int]] = []
-    for first, count in zip(firsts.tolist(), counts.tolist()):
-        if out and out[-1][0] + out[-1][1] == first:
-            out[-1] = (out[-1][0], out[-1][1] + count)
+    owners = np.zeros(n, np.int64)[mask] if owner is None else owner[mask]
+    out: dict[int, list[tuple[int, int]]] = {}
+    for mesh, first, count in zip(owners.tolist(), firsts.tolist(), counts.tolist()):
+        ranges = out.setdefault(mesh, [])
+        if ranges and ranges[-1][0] + ranges[-1][1] == first:
+            ranges[-1] = (ranges[-1][0], ranges[-1][1] + count)
         else:
-            out.append((first, count))
+            ranges.append((first, count))
     return out

@@ -26,7 +26,14 @@ from app.camera import EyeView
 from app.scene import Light, Material, Scene, Texture
 from app.tangents import generate_tangents
 from render.constants import MAX_LIGHTS
-from render.culling import Chunks, chunk_mesh, frustum_planes, lod_levels, visible_ranges
+from render.culling import (
+    Chunks,
+    chunk_mesh,
+    frustum_planes,
+    lod_levels,
+    merge_chunks,
+    visible_ranges,
+)
 from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
@@ -146,6 +153,8 @@ class GpuScene:
                 )
             )
         self.cull = True  # render.culling; off: every range drawn (the test's reference)
+        self._all, self._owner = merge_chunks([m.chunks for m in self.meshes])
+        self._range_cache: dict[tuple, dict[int, list[tuple[int, int]]]] = {}
         self.drawn: dict[int, int] = {}  # triangles drawn per view this frame (eye index)
         self.lod_bias = 0.0  # render.lod_bias: pixels a simplified level may stray (0: full)
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
@@ -245,15 +254,35 @@ class GpuScene:
         if view_projection is None or not self.cull:
             vao.render(moderngl.TRIANGLES, vertices=self.meshes[index].vertex_count)
             return self.meshes[index].vertex_count // 3
-        levels = None
-        if eye is not None and self.lod_bias > 0 and chunks.levels > 1:
-            pixels_per_radian = float(eye.projection[1, 1]) * eye.height * 0.5
-            levels = lod_levels(chunks, eye.position, pixels_per_radian, self.lod_bias)
         drawn = 0
-        for first, count in visible_ranges(chunks, frustum_planes(view_projection), levels):
+        for first, count in self._view_ranges(view_projection, eye).get(index, ()):
             vao.render(moderngl.TRIANGLES, vertices=count, first=first)
             drawn += count
         return drawn // 3
+
+    def _view_ranges(
+        self, view_projection: np.ndarray, eye: EyeView | None
+    ) -> dict[int, list[tuple[int, int]]]:
+        """Every mesh's ranges to draw for one view, its chunks tested and their levels
+        chosen all at once (real rooms hold hundreds of meshes); the last views' answers are
+        kept, so the passes of a frame that draw the same eye share them."""
+        lod = eye is not None and self.lod_bias > 0 and self._all.levels > 1
+        key = (
+            np.asarray(view_projection, np.float64).tobytes(),
+            np.asarray(eye.position, np.float64).tobytes() if lod and eye is not None else b"",
+            self.lod_bias if lod else 0.0,
+        )
+        if key in self._range_cache:
+            return self._range_cache[key]
+        levels = None
+        if lod and eye is not None:
+            pixels_per_radian = float(eye.projection[1, 1]) * eye.height * 0.5
+            levels = lod_levels(self._all, eye.position, pixels_per_radian, self.lod_bias)
+        ranges = visible_ranges(self._all, frustum_planes(view_projection), levels, self._owner)
+        if len(self._range_cache) >= 16:  # two eyes and the shadow maps' faces of a frame
+            self._range_cache.clear()
+        self._range_cache[key] = ranges
+        return ranges
 
     def vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
         key = (program.glo, index)
