@@ -185,11 +185,17 @@ def cache_dir() -> Path:
     return Path(base) / "vrpreview" / "lod"
 
 
-def content_key(positions: np.ndarray, indices: np.ndarray) -> str:
+def content_key(
+    positions: np.ndarray, indices: np.ndarray, normals: np.ndarray | None = None
+) -> str:
+    """The cache's name for a mesh's levels: its geometry, normals (they weigh the error)
+    and the build's parameters."""
     h = hashlib.sha256()
     h.update(f"v{CACHE_VERSION} {CHUNK_TRIANGLES} {LOD_FRACTIONS}".encode())
     h.update(np.ascontiguousarray(positions, np.float32).tobytes())
     h.update(np.ascontiguousarray(indices, np.int64).tobytes())
+    if normals is not None:
+        h.update(np.ascontiguousarray(normals, np.float32).tobytes())
     return h.hexdigest()
 
 
@@ -207,7 +213,7 @@ def cached_lod(
 ) -> tuple[MeshLod | None, bool]:
     """The mesh's levels from the cache or built (and cached); True when it was a cache hit.
     None (with a warning) when the mesh cannot be simplified: it is drawn in full."""
-    key = content_key(positions, indices)
+    key = content_key(positions, indices, normals)
     path = cache_dir() / f"{key}.npz"
     n = int(np.asarray(indices).reshape(-1, 3).shape[0])
     if path.exists():
