@@ -36,6 +36,7 @@ from pathlib import Path
 
 from app.errors import SceneLoadError
 from app.gltf_reader import read_gltf
+from app.lod import attach_lods
 from app.placement import finish_scene, place
 from app.progress import LoadCancelled, Progress
 from app.scene import Scene
@@ -118,6 +119,9 @@ def _load(p: Path, options: LoadOptions, progress: Progress) -> Scene:
         )
     progress.report(0.85, "Finding where to stand")
     scene = finish_scene(scene, options.unit_scale is None, progress)
+    # Chunks and simplified levels for the renderer (app.lod), from the cache when it has them.
+    lod_progress = progress.span(0.95, 1.0)
+    attach_lods(scene.meshes, lod_progress.report)
     progress.report(1.0, "Done")
     return scene
 

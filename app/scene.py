@@ -74,6 +74,7 @@ class Mesh:
     # pointing along +v of ``uvs``); only for meshes whose material has a normal map.
     tangents: np.ndarray | None = None
     ao: np.ndarray | None = None  # (N, 2) float32 baked occlusion, front and back (app.ao_bake)
+    lod: Any = None  # app.lod.MeshLod: chunks and simplified levels, built at load (or None)
 
     @property
     def triangle_count(self) -> int:

@@ -420,6 +420,18 @@ class RenderSettings:
         hi=64,
         step=1.0,
     )
+    lod_bias: float = _opt(
+        0.0,
+        "Draws far-away objects with fewer triangles: how far, in pixels on screen, a "
+        "simplified surface may stray from the full one. 0 always draws full detail.",
+        label="Simplify distant geometry",
+        unit="px",
+        paper="Funkhouser and Séquin: level of detail",
+        lo=0.0,
+        hi=16.0,
+        decimals=1,
+        step=0.5,
+    )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(
         1.0,

@@ -174,7 +174,7 @@ class AmbientOcclusionPass(RenderPass):
         scene = frame.scene
         for mesh in range(len(scene.meshes)):
             vao = scene.ao_vao(prog, mesh) if baked else scene.vao(prog, mesh)
-            vao.render(moderngl.TRIANGLES)
+            scene.draw(vao, mesh, eye.view_projection, eye)
         if not prepass:
             fbo.depth_mask = True
             ctx.depth_func = "<"

@@ -22,9 +22,18 @@ import moderngl
 import numpy as np
 
 from app.ao_bake import BackgroundBake
+from app.camera import EyeView
 from app.scene import Light, Material, Scene, Texture
 from app.tangents import generate_tangents
 from render.constants import MAX_LIGHTS
+from render.culling import (
+    Chunks,
+    chunk_mesh,
+    frustum_planes,
+    lod_levels,
+    merge_chunks,
+    visible_ranges,
+)
 from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
@@ -55,6 +64,9 @@ class GpuMesh:
     tangents: bool = False  # the vertex buffer has a tangent (TANGENT_FORMAT)
     centre: tuple[float, float, float] = (0.0, 0.0, 0.0)  # bounding-box centre (blend order)
     maps: dict[str, moderngl.Texture] | None = None  # sampler name -> material map
+    # Ranges of the index buffer, each with its world-space bounds (render.culling): one for
+    # a small mesh, spatially coherent chunks of a big one.
+    chunks: Chunks | None = None
 
     @property
     def blended(self) -> bool:
@@ -119,21 +131,32 @@ class GpuScene:
                 columns.append(t)
             data = np.hstack(columns).astype(np.float32)
             lo, hi = m.bounds() if len(m.positions) else (np.zeros(3), np.zeros(3))
+            lod = m.lod
+            if lod is not None and lod.source_triangles == m.triangle_count:
+                indices, chunks = lod.triangles, lod.chunks  # app.lod: built at load
+            else:
+                indices, chunks = chunk_mesh(m.positions, m.indices)
             centre = (lo + hi) * 0.5
             self.meshes.append(
                 GpuMesh(
                     m.name,
                     ctx.buffer(data.tobytes()),
-                    ctx.buffer(m.indices.astype(np.uint32).tobytes()),
+                    ctx.buffer(indices.astype(np.uint32).tobytes()),
                     mat,
                     mat.texture,
-                    int(m.indices.size),
+                    int(m.indices.size),  # the full level's index count
                     ctx.buffer(np.zeros((max(len(m.positions), 1), 2), np.float32).tobytes()),
                     tangents,
                     (float(centre[0]), float(centre[1]), float(centre[2])),
                     maps,
+                    chunks,
                 )
             )
+        self.cull = True  # render.culling; off: every range drawn (the test's reference)
+        self._all, self._owner = merge_chunks([m.chunks for m in self.meshes])
+        self._range_cache: dict[tuple, dict[int, list[tuple[int, int]]]] = {}
+        self.drawn: dict[int, int] = {}  # triangles drawn per view this frame (eye index)
+        self.lod_bias = 0.0  # render.lod_bias: pixels a simplified level may stray (0: full)
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
@@ -214,6 +237,52 @@ class GpuScene:
         for sampler, tex in (mesh.maps or {}).items():
             if names is None or sampler in names:
                 bind_texture(prog, sampler, tex, optional=True)
+
+    def draw(
+        self,
+        vao: moderngl.VertexArray,
+        index: int,
+        view_projection: np.ndarray | None = None,
+        eye: EyeView | None = None,
+    ) -> int:
+        """Draw mesh ``index`` through ``vao``: only its chunks inside the frustum of
+        ``view_projection`` (None: all of them), each at the level of detail ``lod_bias``
+        allows seen from ``eye`` (None: full detail). Returns the triangles drawn."""
+        chunks = self.meshes[index].chunks
+        if chunks is None:
+            return 0
+        if view_projection is None or not self.cull:
+            vao.render(moderngl.TRIANGLES, vertices=self.meshes[index].vertex_count)
+            return self.meshes[index].vertex_count // 3
+        drawn = 0
+        for first, count in self._view_ranges(view_projection, eye).get(index, ()):
+            vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+            drawn += count
+        return drawn // 3
+
+    def _view_ranges(
+        self, view_projection: np.ndarray, eye: EyeView | None
+    ) -> dict[int, list[tuple[int, int]]]:
+        """Every mesh's ranges to draw for one view, its chunks tested and their levels
+        chosen all at once (real rooms hold hundreds of meshes); the last views' answers are
+        kept, so the passes of a frame that draw the same eye share them."""
+        lod = eye is not None and self.lod_bias > 0 and self._all.levels > 1
+        key = (
+            np.asarray(view_projection, np.float64).tobytes(),
+            np.asarray(eye.position, np.float64).tobytes() if lod and eye is not None else b"",
+            self.lod_bias if lod else 0.0,
+        )
+        if key in self._range_cache:
+            return self._range_cache[key]
+        levels = None
+        if lod and eye is not None:
+            pixels_per_radian = float(eye.projection[1, 1]) * eye.height * 0.5
+            levels = lod_levels(self._all, eye.position, pixels_per_radian, self.lod_bias)
+        ranges = visible_ranges(self._all, frustum_planes(view_projection), levels, self._owner)
+        if len(self._range_cache) >= 16:  # two eyes and the shadow maps' faces of a frame
+            self._range_cache.clear()
+        self._range_cache[key] = ranges
+        return ranges
 
     def vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
         key = (program.glo, index)

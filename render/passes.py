@@ -116,11 +116,13 @@ def _draw_meshes(
     order: list[int] | None = None,
     ao: moderngl.Texture | None = None,
     sky=None,
-) -> None:
+) -> int:
     """Draw meshes for one eye with their materials (maps, alpha mode and TCR mode as
     variants): ``order``, or every mesh that is not blended (the blend pass draws those);
-    ``ao``: the eye's ambient occlusion the forward path shades with (render/ao.py)."""
+    ``ao``: the eye's ambient occlusion the forward path shades with (render/ao.py). Only
+    the chunks inside the eye's frustum are drawn; returns the triangles drawn."""
     scene = frame.scene
+    drawn = 0
     streamer = scene.streamer
     tcr = frame.levels is not None
     if order is None:
@@ -152,7 +154,8 @@ def _draw_meshes(
             set_uniforms(prog, {}, optional={"u_level": float(level - resident.base)})
         # Only the TCR_TINT variant paints the level.
         set_uniforms(prog, {}, optional={"u_tint": level_tint(level)})
-        scene.vao(prog, index).render(moderngl.TRIANGLES)
+        drawn += scene.draw(scene.vao(prog, index), index, eye.view_projection, eye)
+    return drawn
 
 
 class GBufferPass(RenderPass):
@@ -171,7 +174,8 @@ class GBufferPass(RenderPass):
         for eye, tgt in zip(frame.eyes, res.targets):
             tgt.gbuffer.use()
             tgt.gbuffer.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            _draw_meshes(ctx, self.shaders, frame, eye, "gbuffer.frag.glsl")
+            drawn = _draw_meshes(ctx, self.shaders, frame, eye, "gbuffer.frag.glsl")
+            frame.scene.drawn[eye.index] = drawn
         ctx.disable(moderngl.DEPTH_TEST)
 
 
@@ -396,7 +400,7 @@ class EmissivePass(RenderPass):
                 )
                 uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
                 scene.bind_material(prog, index)
-                scene.vao(prog, index).render(moderngl.TRIANGLES)
+                scene.draw(scene.vao(prog, index), index, eye.view_projection, eye)
             tgt.forward.depth_mask = True
         ctx.depth_func = "<"
         ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
@@ -427,7 +431,7 @@ class ForwardPass(RenderPass):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
                 eye_ao = ao[index] if ao is not None else None
-                _draw_meshes(
+                frame.scene.drawn[eye.index] = _draw_meshes(
                     ctx,
                     self.shaders,
                     frame,
@@ -730,7 +734,7 @@ class ObjectIdPass(RenderPass):
                 set_uniforms(prog, {"u_view_projection": eye.view_projection})
                 scene.bind_material(prog, index, ("albedo",))
                 uniform(prog, "u_id").value = float(index + 1)
-                scene.vao(prog, index).render(moderngl.TRIANGLES)
+                scene.draw(scene.vao(prog, index), index, eye.view_projection, eye)
             data = np.frombuffer(ids.read(), np.float32).reshape(ids.size[1], ids.size[0])
             self.result.append(np.flipud(data).astype(np.int32) - 1)
         self.ctx.disable(moderngl.DEPTH_TEST)

@@ -304,6 +304,7 @@ class Renderer:
         self.step_exposure()
         self._sync_lights()
         ctx = self.frame_context(frame, out, origin, split)
+        ctx.scene.lod_bias = self.settings.render.lod_bias  # cheap: the governor moves it
         enabled = self.configure(ctx)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
@@ -410,6 +411,11 @@ class Renderer:
             return {}
         scene = self.gpu_scene or self._empty  # the scene the frame drew (as frame_context)
         return LightCullPass.evaluations(self.targets, len(scene.lights))
+
+    def triangles_drawn(self) -> list[int]:
+        """Triangles the last frame's geometry pass drew per eye (after frustum culling)."""
+        drawn = (self.gpu_scene or self._empty).drawn
+        return [drawn.get(i, 0) for i in range(2)]
 
     def texture_resident_bytes(self) -> int:
         return self.gpu_scene.texture_bytes if self.gpu_scene is not None else 0

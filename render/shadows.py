@@ -452,7 +452,7 @@ class ShadowPass(RenderPass):
             fbo.clear(depth=1.0, viewport=rect)
             set_uniforms(prog, {"u_light_view_projection": vp})
             for k in casters:
-                scene.vao(prog, k).render(moderngl.TRIANGLES)
+                scene.draw(scene.vao(prog, k), k, vp)  # culled to the light's frustum
             self.face_renders += 1
         ctx.polygon_offset = (0.0, 0.0)
         ctx.disable(moderngl.DEPTH_TEST)

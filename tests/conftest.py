@@ -86,6 +86,8 @@ def _data_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("VRPREVIEW_DATA", str(tmp_path / "data"))
     # The window's preferences (ui/prefs.py) too: each test starts as a first run.
     monkeypatch.setenv("VRPREVIEW_CONFIG", str(tmp_path / "config"))
+    # Cached levels of detail (app/lod.py) too: a test sees its own builds.
+    monkeypatch.setenv("VRPREVIEW_CACHE", str(tmp_path / "cache"))
 
 
 @pytest.fixture(autouse=True)

@@ -220,6 +220,7 @@ def bench(
     per_frame: list[dict] = []
     compared: list[tuple[int, FrameErrors]] = []  # (state, figures) per compared frame
     photon_frames: list[dict] = []
+    drawn: list[list[int]] = []  # triangles drawn per eye, per frame
     try:
         host.set_text_image(None)
         for i in range(-warmup, total):
@@ -238,6 +239,7 @@ def bench(
                 with host.ctx:
                     photon_frames.append(host.renderer.photon_stats())
             resident.append(host.renderer.texture_resident_bytes())
+            drawn.append(host.renderer.triangles_drawn())
             gazed = session.gazed
             distance = (
                 float(session.tcr.distances[gazed])
@@ -317,6 +319,9 @@ def bench(
         per_frame=per_frame,
         error_vs_full_quality=(_error_summary(compared, ppd) if reference is not None else None),
         shadows=shadows,
+        geometry={
+            "triangles_drawn": [int(np.median(col)) for col in zip(*drawn)] if drawn else [],
+        },
     )
 
 

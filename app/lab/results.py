@@ -148,6 +148,8 @@ class BenchResult:
     error_vs_full_quality: ErrorVsFullQuality | None = None
     command: str | None = None  # the command that makes the run again (experiments)
     shadows: dict | None = None  # the shadow maps: GPU memory, maps drawn (render.shadows)
+    # The geometry drawn: ``triangles_drawn`` per eye (median over frames, after culling).
+    geometry: dict | None = None
 
     @property
     def fps_median(self) -> float:
@@ -185,6 +187,8 @@ class BenchResult:
             out["command"] = self.command
         if self.shadows is not None:
             out["shadows"] = self.shadows
+        if self.geometry is not None:
+            out["geometry"] = self.geometry
         return out
 
 
