@@ -276,9 +276,7 @@ class Governor:
     def predict(self, user: Settings, position: dict[str, int]) -> float:
         """Predicted frame time (ms) at ``position``."""
         f = cost_factors(self._values(user, position))
-        return (self.overhead_ms or 0.0) + sum(
-            self.base_ms.get(c, 0.0) * f[c] for c in CATEGORIES
-        )
+        return (self.overhead_ms or 0.0) + sum(self.base_ms.get(c, 0.0) * f[c] for c in CATEGORIES)
 
     def _learn(self, user: Settings, pass_ms: dict[str, float], frame_ms: float) -> None:
         f = cost_factors(self._values(user, self.position))
@@ -290,8 +288,10 @@ class Governor:
             old = self.base_ms.get(c)
             self.base_ms[c] = base if old is None else old + EMA * (base - old)
         rest = max(0.0, frame_ms - sum(per_cat.values()))
-        self.overhead_ms = rest if self.overhead_ms is None else (
-            self.overhead_ms + EMA * (rest - self.overhead_ms)
+        self.overhead_ms = (
+            rest
+            if self.overhead_ms is None
+            else (self.overhead_ms + EMA * (rest - self.overhead_ms))
         )
 
     def largest_cost(self, user: Settings) -> str:
@@ -328,7 +328,9 @@ class Governor:
             self.overrides = self._overrides(user)
             return self.overrides
         self._learn(user, pass_ms, frame_ms)
-        self.ema_ms = frame_ms if self.ema_ms is None else self.ema_ms + EMA * (frame_ms - self.ema_ms)
+        self.ema_ms = (
+            frame_ms if self.ema_ms is None else self.ema_ms + EMA * (frame_ms - self.ema_ms)
+        )
         self.since_change += 1
         for k in list(self._backoff):
             self._backoff[k] -= 1
@@ -345,9 +347,7 @@ class Governor:
         self.overrides = self._overrides(user)
         return self.overrides
 
-    def _changed(
-        self, user: Settings, action: str, knob: Knob, value: Any, ema: float
-    ) -> None:
+    def _changed(self, user: Settings, action: str, knob: Knob, value: Any, ema: float) -> None:
         self.history.append(
             Decision(
                 self.frames, action, knob.name, value, ema, self.budget_ms, self.largest_cost(user)
@@ -463,7 +463,9 @@ class Governor:
             )
             lines.append(f"{knob.name} {_shown(knob.key, value)}{reason}")
         if not changed:
-            lines.append(f"Full quality: the frame fits the budget ({largest} is the largest cost).")
+            lines.append(
+                f"Full quality: the frame fits the budget ({largest} is the largest cost)."
+            )
         return lines
 
     def summary(self) -> dict[str, Any]:

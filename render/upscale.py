@@ -27,4 +27,6 @@ def upscale_defines(src: tuple[int, int], dst: tuple[int, int], upscaler: str) -
     """The present shader's variant: none at 1:1, else the chosen filter."""
     if src == dst:
         return {}
-    return {"UPSCALE_BILINEAR": upscaler == "bilinear"} if upscaler == "bilinear" else {"EASU": True}
+    return (
+        {"UPSCALE_BILINEAR": upscaler == "bilinear"} if upscaler == "bilinear" else {"EASU": True}
+    )
