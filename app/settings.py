@@ -670,6 +670,7 @@ class TcrSettings:
         lo=0,
         hi=8,
         step=1.0,
+        hidden=True,  # the frame-rate control's knob; command line and presets otherwise
     )
     tint: bool = _opt(
         False,

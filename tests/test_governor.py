@@ -245,3 +245,22 @@ def test_auto_headless_is_fixed_settings_and_deterministic():
             assert h.renderer.targets[0].size == (W // 2, H)
             shots.append(img)
     assert np.array_equal(shots[0], shots[1])
+
+
+def test_frame_rate_panel_shows_the_budget_in_words(qtbot):
+    from ui.governor_panel import GovernorPanel
+
+    user = walking("30")
+    gov, _, _ = run(user, 20)
+    panel = GovernorPanel(lambda: gov.explain(user))
+    qtbot.addWidget(panel)
+    assert panel.budget.text().startswith("Budget 33 ms a frame (30 fps)")
+    assert "render scale" in panel.knobs.text() and "%" in panel.knobs.text()
+    assert "over the 33 ms budget" in panel.knobs.text()
+
+    def broken() -> list[str]:
+        raise RuntimeError("no renderer")
+
+    panel.lines = broken
+    panel.refresh()  # a failing source shows a line, never raises out of the timer's slot
+    assert "not available" in panel.budget.text()
