@@ -54,10 +54,10 @@ from ui.controls import ControlsDialog
 from ui.cps_panel import CpsPanel
 from ui.frame_graph import frame_graph_dock
 from ui.gl_view import StereoView, default_format
+from ui.governor_panel import GovernorPanel
 from ui.log_panel import LogPanel, WarningsLink
 from ui.overlay import KeysOverlay
 from ui.panels import EvaluationBar, SettingsPanel
-from ui.governor_panel import GovernorPanel
 from ui.photon_panel import PhotonPanel
 from ui.presenter import Presenter
 from ui.quality_panel import QualityPanel
