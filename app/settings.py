@@ -459,6 +459,15 @@ class RenderSettings:
         step=5.0,
         scale=100.0,
     )
+    upscaler: str = _opt(
+        "edge",
+        "How a picture drawn at a lower resolution is enlarged: keeping edges crisp, or a "
+        "plain blend of the nearest pixels, which is faster and softer.",
+        label="Enlarging",
+        paper="AMD FSR 1: edge-adaptive spatial upsampling",
+        choices=("edge", "bilinear"),
+        choice_labels={"edge": "Edge-preserving (FSR 1 style)", "bilinear": "Plain (bilinear)"},
+    )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(
         1.0,

@@ -522,6 +522,7 @@ class PresentPass(RenderPass):
     def configure(self, settings, scene, frame) -> bool:
         self.visualize = settings.cps.visualize
         self.tone = self.defines(settings)
+        self.upscaler = "bilinear" if settings.render.upscaler == "bilinear" else "easu"
         return True
 
     def execute(self, frame: FrameContext, res: Resources) -> None:

@@ -9,7 +9,7 @@ ringing), on the tone-mapped, display-encoded colour as FSR expects
 
 from __future__ import annotations
 
-UPSCALERS = ("easu", "bilinear")
+UPSCALERS = ("easu", "bilinear")  # render.upscaler "edge" is easu
 #: No eye is drawn smaller than this many pixels on a side (the tile and level maps need some).
 MIN_SIDE = 16
 

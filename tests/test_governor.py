@@ -21,6 +21,7 @@ KEYS = (
     "cps.max_level",
     "cps.fovea_deg",
     "cps.deg_per_level",
+    "render.upscaler",
 )
 # A frame's full-quality pass costs (ms), the shape of the showroom's at 2x640x720.
 BASE = {"gbuffer": 14.0, "shadows": 6.0, "lighting": 40.0, "ao": 6.0, "present": 4.0}
@@ -186,11 +187,12 @@ def frame_of(host: OffscreenHost) -> FrameInput:
     return FrameInput(cam.eyes(*host.eye_size), gaze=(-1, -1))
 
 
-def draw(host: OffscreenHost, scale: float, upscaler: str = "easu") -> np.ndarray:
+def draw(host: OffscreenHost, scale: float, upscaler: str = "edge") -> np.ndarray:
     host.settings.set("render.scale", scale)
-    host.renderer.present.upscaler = upscaler
+    host.settings.set("render.upscaler", upscaler)
     img = host.draw(frame_of(host)).astype(np.float32)
     host.settings.set("render.scale", 1.0)
+    host.settings.set("render.upscaler", "edge")
     return img
 
 
