@@ -224,15 +224,14 @@ class Governor:
     refining: bool = False
     _backoff: dict[str, int] = field(default_factory=dict)  # knob -> frames it may not restore
     _overshoots: dict[str, int] = field(default_factory=dict)  # restores of a knob that overshot
+    # _knobs_all and the user's knob values, for this frame's settings
+    _steps: tuple[Settings, list, dict[str, Any]] | None = None
     _restored: tuple[str, int] | None = None  # the last restore and when (overshoot check)
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
         out = []
-        for knob in KNOBS:
-            steps = knob.usable_steps(user)
-            if not steps:
-                continue
+        for knob, steps in self._knobs_all(user):
             if knob.key.startswith("cps.") and user.render.path != "deferred":
                 continue
             if knob.key == "tcr.level_bias" and not user.tcr.enabled:
@@ -251,21 +250,27 @@ class Governor:
 
     def _values(self, user: Settings, position: dict[str, int]) -> dict[str, Any]:
         """Every knob key's value at ``position`` (user values where the step is 0)."""
-        values: dict[str, Any] = {}
-        for knob in KNOBS:
-            for key in {knob.key, *(k for s in knob.steps for k in s)}:
-                try:
-                    values[key] = user.get(key)
-                except SettingsError:
-                    pass
-        for knob, steps in self._knobs_all(user):
+        knobs = self._knobs_all(user)
+        assert self._steps is not None
+        values = dict(self._steps[2])
+        for knob, steps in knobs:
             i = position.get(knob.key, 0)
             if i > 0:
                 values.update(steps[min(i, len(steps)) - 1])
         return values
 
     def _knobs_all(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
-        return [(k, k.usable_steps(user)) for k in KNOBS if k.usable_steps(user)]
+        """Every knob with steps below the user's values (worked out once per frame)."""
+        if self._steps is not None and self._steps[0] is user:
+            return self._steps[1]
+        knobs = [(k, steps) for k in KNOBS if (steps := k.usable_steps(user))]
+        values: dict[str, Any] = {}
+        for knob in KNOBS:
+            for key in {knob.key, *(k for s in knob.steps for k in s)}:
+                if _exists(user, key):
+                    values[key] = user.get(key)
+        self._steps = (user, knobs, values)
+        return knobs
 
     def _overrides(self, user: Settings) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -314,6 +319,7 @@ class Governor:
         """Learn from the frame just drawn and choose the next frame's overrides (keys to
         values, applied over a copy of the user's settings)."""
         self.frames += 1
+        self._steps = None  # the user may have changed a setting since the last frame
         fps = target_fps(user, display_hz)
         self.budget_ms = 1000.0 / fps if fps > 0 else 0.0
         self.refining = bool(refining)
