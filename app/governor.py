@@ -89,10 +89,11 @@ class Knob:
         return out
 
 
-# The error table: FLIP against full quality per step. Sources: the study's showroom presets
-# (docs/study: CPS levels 1-4 in the periphery, TCR one level, hard shadows) rounded, and
-# for the render scale FSR 1's quality modes (0.77, 0.67, 0.59, 0.5 per axis) with the error
-# growing with the lost pixels; the fovea knobs count four times (the gazed area).
+# The error table: FLIP against full quality per step, hand-set priors (not yet fitted): small
+# for the periphery's knobs (CPS blocks, fewer shadow redraws), larger for what the whole
+# frame shows (hard shadow edges, the render scale after FSR 1's quality modes 0.77, 0.67,
+# 0.59, 0.5 per axis, growing with the pixels lost), four times larger for the fovea's knobs.
+# To be replaced by the study's Pareto front per scene (app/lab/study.py) when it is run.
 KNOBS: tuple[Knob, ...] = (
     Knob(
         "shadow redraws",
