@@ -340,6 +340,13 @@ class Renderer:
         if size != view:
             eyes = [dataclasses.replace(e, width=size[0], height=size[1]) for e in frame.eyes]
             frame = dataclasses.replace(frame, eyes=eyes)
+        cps = self.settings.cps
+        if cps.mode == "cps" and user.cps.mode == "none" and not frame.cps_caps:
+            # The governor's CPS: the host cast no edge rays (CPS is off in the user's
+            # settings), so every side may reach the governor's coarsest block; the angle
+            # from the gaze alone chooses the detail.
+            caps = (float(cps.max_level),) * 3
+            frame = dataclasses.replace(frame, cps_caps=[caps, caps])
         bias = self.settings.tcr.level_bias - user.tcr.level_bias
         if bias and frame.levels is not None:  # the governor's coarser textures
             frame = dataclasses.replace(frame, levels=[max(0, lv + bias) for lv in frame.levels])

@@ -266,3 +266,16 @@ def test_frame_rate_panel_shows_the_budget_in_words(qtbot):
     panel.lines = broken
     panel.refresh()  # a failing source shows a line, never raises out of the timer's slot
     assert "not available" in panel.budget.text()
+
+
+def test_the_governors_coarse_lighting_works_without_the_users_edge_rays(host):
+    """CPS off in the user's settings: the host casts no edge rays, yet the governor's CPS
+    lights the periphery in coarser blocks (the user's settings stay as set)."""
+    host.renderer.governor.overrides = {"cps.mode": "cps", "cps.max_level": 3, "cps.fovea_deg": 3.5}
+    cam = StereoCamera(host.settings.stereo)
+    cam.set_pose((0, 1.6, 0), 0.0, 0.0)
+    host.draw(FrameInput(cam.eyes(*host.eye_size), gaze=(0.5, 0.5)))
+    share = host.cps_stats()["level_share"]
+    assert host.settings.cps.mode == "none"
+    assert sum(share[1:]) > 0.3  # most of the periphery in blocks
+    host.renderer.governor.overrides = {}
