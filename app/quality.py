@@ -30,7 +30,8 @@ def full_quality(settings: Settings, converged_photons: bool = True) -> Settings
     """The reference a setting's errors are measured against: finest textures (TCR off),
     full-rate lighting without a mask (CPS none) and, where there is indirect light, the
     photon map gathered per eye without reuse (converged: 4M paths at r = 10 cm, unless
-    ``converged_photons`` is False: then the current map); everything else the same."""
+    ``converged_photons`` is False: then the current map), drawn at full resolution with no
+    frame rate held; everything else the same."""
     ref = settings.copy()
     ref.tcr.enabled = False
     ref.tcr.tint = False
@@ -44,6 +45,9 @@ def full_quality(settings: Settings, converged_photons: bool = True) -> Settings
     ref.photons.fused = False
     ref.photons.stereo_reuse = False
     ref.photons.show_reuse = False
+    ref.render.target_fps = "0"  # the reference holds no frame rate: every knob at full
+    ref.render.scale = 1.0
+    ref.tcr.level_bias = 0
     return ref
 
 

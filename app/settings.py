@@ -184,6 +184,20 @@ def _clock_time(value: Any) -> str:
     return f"{hours:02d}:{minutes:02d}"
 
 
+def _target_fps(value: Any) -> str:
+    """``"auto"``, or a frame rate in [0, 240] written without trailing zeros (``"30"``)."""
+    text = str(value).strip().lower()
+    if text in ("auto", "automatic", "display"):
+        return "auto"
+    try:
+        fps = float(text)
+    except ValueError:
+        raise ValueError(f"{value!r} is not 'auto' or a frame rate such as 30") from None
+    if not math.isfinite(fps) or not 0.0 <= fps <= 240.0:
+        raise ValueError(f"{value!r} is not 'auto' or a frame rate from 0 to 240")
+    return format_number(fps, 2).replace(",", "")
+
+
 def _iso_date(value: Any) -> str:
     """``YYYY-MM-DD``."""
     text = str(value).strip()
@@ -432,6 +446,40 @@ class RenderSettings:
         decimals=1,
         step=0.5,
     )
+    # The frame-time governor (app/governor.py). "auto" follows the display in the window;
+    # headless hosts (bench, render, tests) have no display and treat it as 0 (fixed).
+    target_fps: str = _opt(
+        "auto",
+        "The frame rate to hold while you walk: the picture gets simpler where you would "
+        "notice least when a frame takes too long, and returns to full quality when there "
+        "is time. Automatic follows the display; 0 keeps every setting as you set it.",
+        label="Frame rate to hold",
+        unit="fps",
+        paper="Funkhouser and Séquin: target frame time",
+        check=_target_fps,
+        range_text="Automatic, 0 (off), or 1 to 240 frames per second.",
+    )
+    scale: float = _opt(
+        1.0,
+        "Draws each eye with fewer pixels and enlarges the picture with an edge-preserving "
+        "filter: faster, a little softer. The frame-rate control lowers it when needed.",
+        label="Drawing resolution",
+        unit="%",
+        lo=0.35,
+        hi=1.0,
+        decimals=0,
+        step=5.0,
+        scale=100.0,
+    )
+    upscaler: str = _opt(
+        "edge",
+        "How a picture drawn at a lower resolution is enlarged: keeping edges crisp, or a "
+        "plain blend of the nearest pixels, which is faster and softer.",
+        label="Enlarging",
+        paper="AMD FSR 1: edge-adaptive spatial upsampling",
+        choices=("edge", "bilinear"),
+        choice_labels={"edge": "Edge-preserving (FSR 1 style)", "bilinear": "Plain (bilinear)"},
+    )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(
         1.0,
@@ -632,6 +680,18 @@ class TcrSettings:
         hi=5.0,
         decimals=2,
         step=0.05,
+    )
+    level_bias: int = _opt(
+        0,
+        "Makes every texture this many levels coarser than the rules choose; the frame-rate "
+        "control raises it when a frame takes too long.",
+        label="Coarser textures by",
+        unit="levels",
+        paper="TCR paper: texture level per object",
+        lo=0,
+        hi=8,
+        step=1.0,
+        hidden=True,  # the frame-rate control's knob; command line and presets otherwise
     )
     tint: bool = _opt(
         False,

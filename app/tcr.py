@@ -329,20 +329,22 @@ def level_for(
     brightness: float,
     terms: TcrTerms,
     reference_brightness: float = 1.0,
+    bias: int = 0,
 ) -> LevelReason:
     """The pyramid level for one object, with each term's share.
 
     ``moving`` is the viewpoint state, ``gazed_fixed`` whether *this* object is under a fixed
     gaze. The distance and brightness fallbacks are those of :func:`distance_term` and
     :func:`brightness_term`; a negative ``n`` is treated as 0 (a texture with one level), so the
-    result is always an int in [0, max(n, 0)].
+    result is always an int in [0, max(n, 0)]. ``bias`` levels are added before the clamp
+    (``tcr.level_bias``: the frame-rate governor's coarser textures).
     """
     top = max(0, int(n))
     dist = distance_term(distance_m, f_m) if terms.d else 0
     v = 1 if terms.v and moving else 0
     g = -1 if terms.g and gazed_fixed else 0
     lum = brightness_term(brightness, reference_brightness) if terms.l else 0
-    raw = dist + v + g + lum
+    raw = dist + v + g + lum + int(bias)
     return LevelReason(distance=dist, v=v, g=g, l=lum, raw=raw, level=min(max(raw, 0), top), n=top)
 
 
@@ -511,6 +513,7 @@ class TcrController:
                 gazed_fixed=i == target,
                 brightness=brightness,
                 terms=terms,
+                bias=settings.level_bias,
             )
             for i in range(count)
         ]

@@ -78,6 +78,8 @@ class FrameContext:
     cps: Any = None  # render.cps.CpsFrame: caps, frame index, edge-ray hits
     edge_hits: Sequence | None = None  # world points per eye, drawn with the level map
     split: Any = None  # render.ab_split.SplitFrame: the presenter's A/B split (None: none)
+    # One eye's size in ``out`` (the eyes are drawn at render.scale of it; None: the targets').
+    view_size: tuple[int, int] | None = None
 
 
 # Resource name -> where the renderer's targets keep it: (table, attribute).

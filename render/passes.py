@@ -32,6 +32,7 @@ from render.pass_graph import (
     uniform,
 )
 from render.shaders import ShaderLibrary
+from render.upscale import upscale_defines
 
 log = logging.getLogger(__name__)
 BACKGROUND = (0.02, 0.02, 0.025)
@@ -512,6 +513,8 @@ class PresentPass(RenderPass):
         super().__init__(ctx, shaders, res)
         self.visualize = False
         self.tone: dict[str, object] = {}
+        self.upscaler = "easu"  # render.upscale.UPSCALERS: how eyes drawn smaller are enlarged
+        self._display: list[tuple[moderngl.Texture, moderngl.Framebuffer]] = []
 
     @staticmethod
     def defines(settings) -> dict[str, object]:
@@ -523,25 +526,36 @@ class PresentPass(RenderPass):
     def configure(self, settings, scene, frame) -> bool:
         self.visualize = settings.cps.visualize
         self.tone = self.defines(settings)
+        self.upscaler = "bilinear" if settings.render.upscaler == "bilinear" else "easu"
         return True
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         levels = res.get("levels") if self.visualize else None
         indirect = res.get("indirect")
         show_reuse = bool(res.get("show_reuse")) and indirect is not None
+        src = res.targets[0].size
+        w, h = frame.view_size or src
+        scaled = upscale_defines(src, (w, h), self.upscaler)
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "present.frag.glsl",
             {"VISUALIZE": levels is not None, "SHOW_REUSE": show_reuse, **self.tone},
         )
-        w, h = res.targets[0].size
-        frame.out.use()
         x, y = frame.out_origin
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         uniform(prog, "u_exposure").value = frame.exposure
+        if scaled:  # tone-mapped at the drawn size first, enlarged below
+            self._ensure_display(src)
+        else:
+            frame.out.use()
         for index, tgt in enumerate(res.targets):
             origin = (x + index * w, y)
-            frame.out.viewport = (*origin, w, h)
+            if scaled:
+                self._display[index][1].use()
+                self._display[index][1].viewport = (0, 0, *src)
+                origin = (0, 0)
+            else:
+                frame.out.viewport = (*origin, w, h)
             uniform(prog, "u_origin").value = origin
             bind_texture(prog, "eye_color", tgt.color)
             if levels is not None:
@@ -550,7 +564,48 @@ class PresentPass(RenderPass):
                 bind_texture(prog, "indirect", indirect[index])
                 uniform(prog, "u_paint_reuse").value = index
             self.fullscreen(prog)
+        if scaled:
+            self._upscale(frame, scaled, src, (w, h))
         frame.out.viewport = (x, y, 2 * w, h)
+
+    def _ensure_display(self, size: tuple[int, int]) -> None:
+        """Per eye the tone-mapped colour at the drawn size (rgba8), for the upscaler."""
+        if self._display and self._display[0][0].size == size:
+            return
+        self._release_display()
+        for _ in range(2):
+            tex = self.ctx.texture(size, 4)
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            tex.repeat_x = tex.repeat_y = False
+            self._display.append((tex, self.ctx.framebuffer([tex])))
+
+    def _upscale(
+        self,
+        frame: FrameContext,
+        defines: dict[str, object],
+        src: tuple[int, int],
+        dst: tuple[int, int],
+    ) -> None:
+        prog = self.shaders.program("fullscreen.vert.glsl", "upscale.frag.glsl", defines)
+        frame.out.use()
+        x, y = frame.out_origin
+        set_uniforms(prog, {"u_src_size": src, "u_dst_size": dst})
+        for index, (tex, _fbo) in enumerate(self._display):
+            origin = (x + index * dst[0], y)
+            frame.out.viewport = (*origin, *dst)
+            uniform(prog, "u_origin").value = origin
+            bind_texture(prog, "eye_color", tex)
+            self.fullscreen(prog)
+
+    def _release_display(self) -> None:
+        for tex, fbo in self._display:
+            fbo.release()
+            tex.release()
+        self._display.clear()
+
+    def release(self) -> None:
+        super().release()
+        self._release_display()
 
 
 class OverlayPass(RenderPass):
@@ -616,7 +671,7 @@ class OverlayPass(RenderPass):
     def execute(self, frame: FrameContext, res: Resources) -> None:
         self._upload()
         prog = self.shaders.program("fullscreen.vert.glsl", "overlay.frag.glsl")
-        w, h = res.targets[0].size
+        w, h = frame.view_size or res.targets[0].size
         x0, y0 = frame.out_origin
         frame.out.use()
         frame.out.viewport = (x0, y0, 2 * w, h)
@@ -664,7 +719,7 @@ class OverlayPass(RenderPass):
             self.fullscreen(prog)
         ctx.scissor = None
         ctx.disable(moderngl.BLEND)
-        markers = project_hits(frame) if self.show_markers and res.written("levels") else []
+        markers = project_hits(frame, (w, h)) if self.show_markers and res.written("levels") else []
         for e, points in enumerate(markers):  # edge-ray hits: small magenta squares
             for px, py in points:
                 if -3 <= px <= w + 2 and -3 <= py <= h + 2:  # on the view's edge: kept inside
@@ -680,8 +735,11 @@ class OverlayPass(RenderPass):
         self.set_heat_map(None)
 
 
-def project_hits(frame: FrameContext) -> list[list[tuple[int, int]]]:
-    """Edge-ray hit points as pixels of each eye (from the bottom-left); behind the eye: none."""
+def project_hits(
+    frame: FrameContext, size: tuple[int, int] | None = None
+) -> list[list[tuple[int, int]]]:
+    """Edge-ray hit points as pixels of each eye (from the bottom-left) of ``size`` (default:
+    the eye's drawn size); behind the eye: none."""
     out: list[list[tuple[int, int]]] = []
     hits_per_eye = frame.edge_hits
     for index, eye in enumerate(frame.eyes):
@@ -692,8 +750,9 @@ def project_hits(frame: FrameContext) -> list[list[tuple[int, int]]]:
             clip = np.c_[h, np.ones(len(h))] @ eye.view_projection.T
             ok = clip[:, 3] > 1e-9
             ndc = clip[ok, :2] / clip[ok, 3:4]
+            ew, eh = size or (eye.width, eye.height)
             for x, y in ndc:
-                points.append((int((x * 0.5 + 0.5) * eye.width), int((y * 0.5 + 0.5) * eye.height)))
+                points.append((int((x * 0.5 + 0.5) * ew), int((y * 0.5 + 0.5) * eh)))
         out.append(points)
     return out
 
@@ -718,7 +777,7 @@ class ObjectIdPass(RenderPass):
             self._targets.append((ids, depth, self.ctx.framebuffer([ids], depth)))
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
-        self._ensure(res.targets[0].size)
+        self._ensure(frame.view_size or res.targets[0].size)  # window pixels, at any scale
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.BLEND)
         self.result = []

@@ -9,13 +9,16 @@ texture) and the frame's inputs.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import time
 from typing import Generic, TypeVar, cast
 
 import moderngl
 import numpy as np
 
 from app.frame import FrameInput
+from app.governor import Governor, apply_overrides
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.scene import Light, Scene
@@ -54,6 +57,7 @@ from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
 from render.shadows import ShadowPass
 from render.sky import DaylightPass, SkyPass, sky_key
+from render.upscale import render_size
 
 log = logging.getLogger(__name__)
 
@@ -144,6 +148,11 @@ class Renderer:
         self.exposure = Exposure()
         self.frame_dt = FIXED_DT
         self._exposure_scale = self.exposure.step(settings.render, None, 0.0, False)
+        # The frame-time governor (render.target_fps): its overrides apply to a copy of the
+        # user's settings for each frame; ``display_hz`` is the window's refresh (None in the
+        # headless hosts, where "auto" means fixed settings).
+        self.governor = Governor()
+        self.display_hz: float | None = None
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -297,7 +306,50 @@ class Renderer:
         split: SplitFrame | None = None,
     ) -> None:
         """One stereo frame into ``out``; ``split``: the presenter's A/B split over it (see
-        ``render.ab_frame``)."""
+        ``render.ab_frame``). The governor's knobs (``self.governor``) apply to a copy of the
+        settings for this frame only; the eyes are drawn at ``render.scale`` and enlarged by
+        the present pass."""
+        user = self.settings
+        start = time.perf_counter()
+        self.settings = apply_overrides(user, self.governor.overrides)
+        try:
+            self._render(frame, out, origin, split, user)
+        finally:
+            self.settings = user
+        wall_ms = (time.perf_counter() - start) * 1000.0
+        pass_ms = self.pass_ms()
+        self.governor.observe(
+            user,
+            pass_ms,
+            max(wall_ms, sum(pass_ms.values())),
+            self.display_hz,
+            refining=bool(getattr(frame, "refining", False)),
+        )
+
+    def _render(
+        self,
+        frame: FrameInput,
+        out: moderngl.Framebuffer,
+        origin: tuple[int, int],
+        split: SplitFrame | None,
+        user: Settings,
+    ) -> None:
+        view = (frame.eyes[0].width, frame.eyes[0].height)
+        scale = 1.0 if split is not None else self.settings.render.scale
+        size = render_size(view, scale)
+        if size != view:
+            eyes = [dataclasses.replace(e, width=size[0], height=size[1]) for e in frame.eyes]
+            frame = dataclasses.replace(frame, eyes=eyes)
+        cps = self.settings.cps
+        if cps.mode == "cps" and user.cps.mode == "none" and not frame.cps_caps:
+            # The governor's CPS: the host cast no edge rays (CPS is off in the user's
+            # settings), so every side may reach the governor's coarsest block; the angle
+            # from the gaze alone chooses the detail.
+            caps = (float(cps.max_level),) * 3
+            frame = dataclasses.replace(frame, cps_caps=[caps, caps])
+        bias = self.settings.tcr.level_bias - user.tcr.level_bias
+        if bias and frame.levels is not None:  # the governor's coarser textures
+            frame = dataclasses.replace(frame, levels=[max(0, lv + bias) for lv in frame.levels])
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
         self.cps.ensure(self.targets)
@@ -305,6 +357,7 @@ class Renderer:
         self._sync_lights()
         ctx = self.frame_context(frame, out, origin, split)
         ctx.scene.lod_bias = self.settings.render.lod_bias  # cheap: the governor moves it
+        ctx.view_size = view
         enabled = self.configure(ctx)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
@@ -376,8 +429,10 @@ class Renderer:
     def object_ids(self, frame: FrameInput) -> list[np.ndarray]:
         """Mesh index under each pixel of each eye ((H, W) int32, row 0 at the top; -1: none)."""
         eye = frame.eyes[0]
-        self._ensure_targets(eye.width, eye.height)
+        if not self.targets:  # the ids have their own targets at the view's size
+            self._ensure_targets(eye.width, eye.height)
         ctx = self.frame_context(frame, self.ctx.screen)
+        ctx.view_size = (eye.width, eye.height)
         self.resources.begin_frame(self.targets)
         self.ids.run(ctx)
         return self.ids.result

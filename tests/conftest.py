@@ -28,6 +28,9 @@ SOFTWARE_GL = {
 }
 MESA_EGL_VENDOR = Path("/usr/share/glvnd/egl_vendor.d/50_mesa.json")
 os.environ.update(SOFTWARE_GL)
+# The window's "auto" frame rate follows the display; tests that compare screenshots need
+# fixed settings, so the window sees no display refresh (ui/gl_view.py: display_hz).
+os.environ.setdefault("VRPREVIEW_DISPLAY_HZ", "0")
 if MESA_EGL_VENDOR.exists():
     os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"] = str(MESA_EGL_VENDOR)
 

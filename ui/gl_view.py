@@ -10,6 +10,7 @@ size, the gaze ray and the cursor mapping all come from that one layout, in devi
 from __future__ import annotations
 
 import logging
+import os
 import time
 from typing import TYPE_CHECKING
 
@@ -129,6 +130,7 @@ class StereoView(QOpenGLWidget):
             self.renderer.overlay.set_text_image(text_image(lines))
         # Automatic exposure adapts by the last frame's wall time (the headless hosts' fixed step).
         self.renderer.frame_dt = min(0.25, self.timer.times[-1]) if self.timer.times else 1 / 60
+        self.renderer.display_hz = self.display_hz()  # render.target_fps "auto"
         if self.presenter is not None and self.presenter.active:
             self.presenter.render(self.renderer, frame, fbo, layout.gl_origin)
         else:
@@ -136,6 +138,25 @@ class StereoView(QOpenGLWidget):
         self.session.exposure_state = self.renderer.exposure_state()  # TCR's l reads it
         self.timer.tick(now)
         self.frame_log.record(now, self.renderer.pass_ms())
+
+    def display_hz(self) -> float | None:
+        """The refresh rate of the screen showing the view, for ``render.target_fps = auto``.
+        ``VRPREVIEW_DISPLAY_HZ`` overrides it (0: no display, fixed settings: the tests)."""
+        forced = os.environ.get("VRPREVIEW_DISPLAY_HZ")
+        if forced is not None:
+            try:
+                return float(forced) or None
+            except ValueError:
+                return None
+        screen = self.screen()
+        hz = screen.refreshRate() if screen is not None else 0.0
+        return float(hz) if hz and hz > 0 else None
+
+    def governor_lines(self) -> list[str]:
+        """The frame-rate panel's words (app.governor.Governor.explain)."""
+        if self.renderer is None:
+            return ["Frame rate: no picture yet."]
+        return self.renderer.governor.explain(self.session.settings)
 
     def resizeGL(self, w: int, h: int) -> None:
         self._update_eye_size()

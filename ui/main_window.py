@@ -54,6 +54,7 @@ from ui.controls import ControlsDialog
 from ui.cps_panel import CpsPanel
 from ui.frame_graph import frame_graph_dock
 from ui.gl_view import StereoView, default_format
+from ui.governor_panel import GovernorPanel
 from ui.log_panel import LogPanel, WarningsLink
 from ui.overlay import KeysOverlay
 from ui.panels import EvaluationBar, SettingsPanel
@@ -117,6 +118,8 @@ class MainWindow(QMainWindow):
         self.add_panel(self.tcr_panel, "TCR")
         self.add_panel(self.cps_panel, "CPS")
         self.add_panel(self.photon_panel, "Photons")
+        self.governor_panel = GovernorPanel(self.view.governor_lines)
+        self.add_panel(self.governor_panel, "Frame rate")
         self.quality_panel = QualityPanel(
             lambda: self.view.measure_quality(self._photons_shown), self.view.show_heat_map
         )

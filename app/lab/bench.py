@@ -18,10 +18,12 @@ import numpy as np
 
 from app import metrics, scenes
 from app.fileio import atomic_write_json, atomic_write_png
+from app.governor import Governor, target_fps
 from app.lab.reference import BenchReference, ConvergedPhotons
 from app.lab.results import (
     BenchResult,
     ErrorVsFullQuality,
+    FrameBudget,
     FrameTimes,
     GroupTimes,
     MeanErrors,
@@ -272,10 +274,12 @@ def bench(
                     figures = err.region(region)
                     if figures is not None:
                         record[f"error_{region}"] = figures.to_dict()
+            _record_governor(record, host.renderer.governor)
             per_frame.append(record)
             if progress:
                 progress(i + 1, total)
         errors = host.renderer.errors
+        budget = _frame_budget(frame_ms, settings, host.renderer.governor)
         shadows = host.renderer.shadows.stats()  # shadow_memory_bytes: the maps' GPU memory
         device = host.ctx.info.get("GL_RENDERER", "")
         trace_ms = host.photon_cache.trace_ms
@@ -322,7 +326,22 @@ def bench(
         geometry={
             "triangles_drawn": [int(np.median(col)) for col in zip(*drawn)] if drawn else [],
         },
+        frame_budget=budget,
     )
+
+
+def _record_governor(record: dict, governor: Governor) -> None:
+    """The knobs the governor chose for the next frame (only while it holds a rate)."""
+    if governor.budget_ms > 0:
+        record["knobs"] = dict(governor.overrides)
+
+
+def _frame_budget(ms: list[float], settings: Settings, governor: Governor) -> FrameBudget | None:
+    """Frame times against render.target_fps (headless: "auto" is fixed settings, None)."""
+    fps = target_fps(settings, None)
+    if fps <= 0:
+        return None
+    return FrameBudget.of(ms, fps, governor.summary())
 
 
 def _error_summary(compared: list[tuple[int, FrameErrors]], ppd: float) -> ErrorVsFullQuality:

@@ -26,15 +26,38 @@ class FrameTimes:
     median: float = 0.0
     p95: float = 0.0
     mean: float = 0.0
+    p99: float = 0.0
 
     @classmethod
     def of(cls, ms: list[float]) -> FrameTimes:
-        return cls(**summarize(ms))
+        p99 = float(np.percentile(np.asarray(ms, np.float64), 99)) if ms else 0.0
+        return cls(**summarize(ms), p99=p99 if math.isfinite(p99) else 0.0)
 
     @property
     def fps(self) -> float:
         """Frames per second at the median frame time (0 when there is none)."""
         return 1000.0 / self.median if self.median > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class FrameBudget:
+    """Frame times against the governor's target (``frame_budget`` in the JSON): the share
+    of frames over the budget by more than 10%, and what the governor chose."""
+
+    target_fps: float
+    budget_ms: float
+    median: float
+    p95: float
+    p99: float
+    over_budget_share: float
+    governor: dict
+
+    @classmethod
+    def of(cls, ms: list[float], target_fps: float, governor: dict) -> FrameBudget:
+        budget = 1000.0 / target_fps if target_fps > 0 else 0.0
+        times = FrameTimes.of(ms)
+        over = sum(m > 1.1 * budget for m in ms) / len(ms) if ms and budget > 0 else 0.0
+        return cls(target_fps, budget, times.median, times.p95, times.p99, over, governor)
 
 
 @dataclass(frozen=True)
@@ -150,6 +173,7 @@ class BenchResult:
     shadows: dict | None = None  # the shadow maps: GPU memory, maps drawn (render.shadows)
     # The geometry drawn: ``triangles_drawn`` per eye (median over frames, after culling).
     geometry: dict | None = None
+    frame_budget: FrameBudget | None = None  # against render.target_fps (None: fixed)
 
     @property
     def fps_median(self) -> float:
@@ -189,6 +213,8 @@ class BenchResult:
             out["shadows"] = self.shadows
         if self.geometry is not None:
             out["geometry"] = self.geometry
+        if self.frame_budget is not None:
+            out["frame_budget"] = asdict(self.frame_budget)
         return out
 
 

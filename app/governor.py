@@ -1,0 +1,529 @@
+"""The frame-time governor: each frame, the next frame's knobs for a target frame rate.
+
+Funkhouser & Séquin 1993 (adaptive display) as a greedy step per frame: a cost model learnt
+online from the per-pass timers predicts each candidate's frame time, an error model says
+how much quality a knob step costs, and the governor takes the step with the least error per
+millisecond saved when over budget, and gives back the step with the most error per
+millisecond when there is time. Hysteresis (a dead band between ``RESTORE_BELOW`` and 1.0 of
+the budget, ``MIN_FRAMES`` between changes and a back-off for a restore that overshot) keeps
+it from oscillating. The fovea's knobs (sharp area, falloff) go last and come back first.
+
+Qt-free: the renderer calls :meth:`Governor.observe` after each frame and applies
+:attr:`Governor.overrides` to a copy of the user's settings for the next one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from app.settings import Settings, SettingsError
+
+#: Act when the frame-time average is over the budget; give quality back below this share.
+RESTORE_BELOW = 0.8
+#: Aim a degrading step at this share of the budget, and a restore must be predicted below it.
+AIM = 0.9
+#: Frames between two changes (the timers settle on the new knobs first).
+MIN_FRAMES = 4
+#: Weight of the exponential moving averages (frame time, per-category costs).
+EMA = 0.3
+#: Frames not learnt from (shader variants compile, targets are made).
+WARMUP_FRAMES = 1
+#: Knob steps one decision may take: many when far over the budget, else a few.
+MAX_STEPS_FAR, MAX_STEPS_NEAR = 6, 2
+
+# Each pass's cost follows one quantity: the pixels it shades, the triangles it draws, the
+# shadow maps it redraws, or the window's pixels (present and overlay run at window size).
+_CATEGORY = {
+    "gbuffer": "geometry",
+    "forward": "geometry",
+    "emissive": "geometry",
+    "shadows": "shadows",
+    "lighting": "shading",
+    "cps_lighting": "shading",
+    "photons": "shading",
+    "present": "output",
+    "ab_split": "output",
+    "overlay": "output",
+    "daylight": "fixed",
+}
+CATEGORIES = ("pixels", "geometry", "shading", "shadows", "output", "fixed")
+
+
+def category(pass_name: str) -> str:
+    return _CATEGORY.get(pass_name, "pixels")
+
+
+@dataclass(frozen=True)
+class Knob:
+    """One quality knob: ``steps`` are settings assignments from the first cheaper step to
+    the cheapest (step 0 is the user's own value); ``error`` the quality each step loses
+    (FLIP against full quality, whole frame). ``fovea`` knobs change the sharp area around
+    the gaze: they go last."""
+
+    name: str  # plain words for the panel
+    key: str  # the settings key it is addressed by (skipped where it does not exist)
+    steps: tuple[dict[str, Any], ...]
+    error: tuple[float, ...]
+    fovea: bool = False
+    cheaper_is_higher: bool = False  # the key's value grows as the step gets cheaper
+
+    def usable_steps(self, user: Settings) -> list[dict[str, Any]]:
+        """The steps cheaper than what the user set (none where the key does not exist)."""
+        try:
+            mine = user.get(self.key)
+        except SettingsError:
+            return []
+        if self.key == "cps.max_level" and user.cps.mode != "cps":
+            return list(self.steps)  # CPS off: the governor may turn it on, from level 1
+        out = []
+        for step in self.steps:
+            value = step[self.key]
+            if isinstance(value, str):
+                if value != mine:
+                    out.append(step)
+                continue
+            if (value > mine) if self.cheaper_is_higher else (value < mine):
+                out.append(step)
+        return out
+
+
+# The error table: FLIP against full quality per step, hand-set priors (not yet fitted): small
+# for the periphery's knobs (CPS blocks, fewer shadow redraws), larger for what the whole
+# frame shows (hard shadow edges, the render scale after FSR 1's quality modes 0.77, 0.67,
+# 0.59, 0.5 per axis, growing with the pixels lost), four times larger for the fovea's knobs.
+# To be replaced by the study's Pareto front per scene (app/lab/study.py) when it is run.
+KNOBS: tuple[Knob, ...] = (
+    Knob(
+        "shadow redraws",
+        "render.shadow_updates_per_frame",
+        ({"render.shadow_updates_per_frame": 1},),
+        (0.002,),
+    ),
+    Knob(
+        "coarse lighting in the periphery",
+        "cps.max_level",
+        tuple({"cps.mode": "cps", "cps.max_level": n} for n in (1, 2, 3, 4)),
+        (0.004, 0.004, 0.006, 0.008),
+        cheaper_is_higher=True,
+    ),
+    Knob(
+        "simpler far geometry",
+        "render.lod_bias",
+        tuple({"render.lod_bias": n} for n in (2, 4, 8)),
+        (0.004, 0.006, 0.01),
+        cheaper_is_higher=True,
+    ),
+    Knob(
+        "coarser textures",
+        "tcr.level_bias",
+        tuple({"tcr.level_bias": n} for n in (1, 2)),
+        (0.003, 0.005),
+        cheaper_is_higher=True,
+    ),
+    Knob("hard shadow edges", "render.shadows", ({"render.shadows": "hard"},), (0.012,)),
+    Knob("plain enlarging", "render.upscaler", ({"render.upscaler": "bilinear"},), (0.006,)),
+    Knob(
+        "render scale",
+        "render.scale",
+        tuple({"render.scale": s} for s in (0.85, 0.77, 0.67, 0.59, 0.5, 0.42, 0.35)),
+        (0.006, 0.006, 0.008, 0.01, 0.012, 0.016, 0.02),
+    ),
+    Knob(
+        "sharp area around the gaze",
+        "cps.fovea_deg",
+        tuple({"cps.fovea_deg": d} for d in (7.0, 5.0, 3.5)),
+        (0.04, 0.04, 0.05),
+        fovea=True,
+    ),
+    Knob(
+        "detail falloff",
+        "cps.deg_per_level",
+        tuple({"cps.deg_per_level": d} for d in (4.0, 3.0, 2.0)),
+        (0.04, 0.04, 0.05),
+        fovea=True,
+    ),
+)
+
+#: What the governor shows while the picture refines (the viewer stands still).
+FULL_QUALITY: dict[str, Any] = {
+    "render.scale": 1.0,
+    "cps.mode": "none",
+    "render.lod_bias": 0,
+    "tcr.level_bias": 0,
+    "render.shadows": "soft",
+    "render.upscaler": "edge",
+}
+
+
+def target_fps(settings: Settings, display_hz: float | None) -> float:
+    """The frame rate to hold: the number, or for ``auto`` the display's refresh (0 where
+    there is no display: headless hosts keep fixed settings, so runs are deterministic)."""
+    text = str(settings.render.target_fps)
+    if text == "auto":
+        return float(display_hz) if display_hz and math.isfinite(display_hz) else 0.0
+    return float(text)
+
+
+def cost_factors(values: dict[str, Any]) -> dict[str, float]:
+    """Each category's cost relative to full quality for these knob values (the model's
+    shape; its scale is learnt): fullscreen work follows the pixels (scale squared), the
+    geometry its triangles and part of its pixels, soft shadows cost about twice the hard
+    ones in the lighting, CPS lights fewer samples outside the fovea."""
+    s = float(values.get("render.scale", 1.0))
+    lod = int(values.get("render.lod_bias", 0) or 0)
+    bias = int(values.get("tcr.level_bias", 0) or 0)
+    cps_on = values.get("cps.mode") == "cps"
+    level = int(values.get("cps.max_level", 0)) if cps_on else 0
+    fovea = float(values.get("cps.fovea_deg", 10.0))
+    falloff = float(values.get("cps.deg_per_level", 6.0))
+    periphery = 1.0 - 0.5 * (1.0 - 0.5**level) if cps_on else 1.0
+    if cps_on:  # a smaller sharp area and a faster falloff light fewer full-rate samples
+        periphery *= 0.85 + 0.15 * min(1.0, fovea / 10.0) * min(1.0, falloff / 6.0)
+    upscaler = values.get("render.upscaler", "edge")
+    soft = 1.0 if values.get("render.shadows", "soft") == "soft" else 0.55
+    updates = max(1, int(values.get("render.shadow_updates_per_frame", 2)))
+    return {
+        "pixels": s * s,
+        "geometry": (0.4 + 0.6 * s * s) * 0.6**lod * 0.97**bias,
+        "shading": s * s * periphery * soft,
+        "shadows": min(1.0, updates / 2.0),
+        # Enlarging the eyes (tone map at the drawn size, then EASU at the view's) measured
+        # 21 ms against 12.5 ms for the plain present at 2x640x720 on llvmpipe, bilinear 10.7.
+        "output": 1.0 if s >= 0.999 else (1.7 if upscaler == "edge" else 0.85),
+        "fixed": 1.0,
+    }
+
+
+@dataclass
+class Decision:
+    """One change the governor made, in words for the panel and the benchmark."""
+
+    frame: int
+    action: str  # "lower" or "restore"
+    knob: str
+    value: Any
+    frame_ms: float
+    budget_ms: float
+    largest: str  # the costliest category then
+
+
+@dataclass
+class Governor:
+    """The walking state: each knob's step (0: the user's value), the learnt cost model."""
+
+    position: dict[str, int] = field(default_factory=dict)
+    base_ms: dict[str, float] = field(default_factory=dict)  # category cost at full quality
+    overhead_ms: float | None = None
+    ema_ms: float | None = None
+    since_change: int = MIN_FRAMES  # the first measured frame may act at once
+    frames: int = 0
+    budget_ms: float = 0.0
+    overrides: dict[str, Any] = field(default_factory=dict)
+    history: list[Decision] = field(default_factory=list)
+    refining: bool = False
+    _backoff: dict[str, int] = field(default_factory=dict)  # knob -> frames it may not restore
+    _overshoots: dict[str, int] = field(default_factory=dict)  # restores of a knob that overshot
+    # _knobs_all and the user's knob values, for this frame's settings
+    _steps: tuple[Settings, list, dict[str, Any]] | None = None
+    _restored: tuple[str, int] | None = None  # the last restore and when (overshoot check)
+
+    # -- the knobs -----------------------------------------------------------------------------
+    def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
+        out = []
+        for knob, steps in self._knobs_all(user):
+            if knob.key.startswith("cps.") and user.render.path != "deferred":
+                continue
+            if knob.key == "tcr.level_bias" and not user.tcr.enabled:
+                continue
+            if knob.fovea and not self._cps_on(user):
+                continue
+            if knob.key == "cps.max_level" and user.cps.mode not in ("none", "cps"):
+                continue
+            if knob.key == "render.shadows" and user.render.shadows != "soft":
+                continue
+            out.append((knob, steps))
+        return out
+
+    def _cps_on(self, user: Settings) -> bool:
+        return user.cps.mode == "cps" or self.position.get("cps.max_level", 0) > 0
+
+    def _values(self, user: Settings, position: dict[str, int]) -> dict[str, Any]:
+        """Every knob key's value at ``position`` (user values where the step is 0)."""
+        knobs = self._knobs_all(user)
+        assert self._steps is not None
+        values = dict(self._steps[2])
+        for knob, steps in knobs:
+            i = position.get(knob.key, 0)
+            if i > 0:
+                values.update(steps[min(i, len(steps)) - 1])
+        return values
+
+    def _knobs_all(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
+        """Every knob with steps below the user's values (worked out once per frame)."""
+        if self._steps is not None and self._steps[0] is user:
+            return self._steps[1]
+        knobs = [(k, steps) for k in KNOBS if (steps := k.usable_steps(user))]
+        values: dict[str, Any] = {}
+        for knob in KNOBS:
+            for key in {knob.key, *(k for s in knob.steps for k in s)}:
+                if _exists(user, key):
+                    values[key] = user.get(key)
+        self._steps = (user, knobs, values)
+        return knobs
+
+    def _overrides(self, user: Settings) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for knob, steps in self._knobs_all(user):
+            i = self.position.get(knob.key, 0)
+            if i > 0:
+                out.update(steps[min(i, len(steps)) - 1])
+        return out
+
+    # -- the cost model ------------------------------------------------------------------------
+    def predict(self, user: Settings, position: dict[str, int]) -> float:
+        """Predicted frame time (ms) at ``position``."""
+        f = cost_factors(self._values(user, position))
+        return (self.overhead_ms or 0.0) + sum(self.base_ms.get(c, 0.0) * f[c] for c in CATEGORIES)
+
+    def _learn(self, user: Settings, pass_ms: dict[str, float], frame_ms: float) -> None:
+        f = cost_factors(self._values(user, self.position))
+        per_cat = dict.fromkeys(CATEGORIES, 0.0)
+        for name, ms in pass_ms.items():
+            per_cat[category(name)] += max(0.0, float(ms))
+        for c, ms in per_cat.items():
+            base = ms / max(f[c], 1e-3)
+            old = self.base_ms.get(c)
+            self.base_ms[c] = base if old is None else old + EMA * (base - old)
+        rest = max(0.0, frame_ms - sum(per_cat.values()))
+        self.overhead_ms = (
+            rest
+            if self.overhead_ms is None
+            else (self.overhead_ms + EMA * (rest - self.overhead_ms))
+        )
+
+    def largest_cost(self, user: Settings) -> str:
+        f = cost_factors(self._values(user, self.position))
+        costs = {c: self.base_ms.get(c, 0.0) * f[c] for c in CATEGORIES}
+        return max(costs, key=lambda c: costs[c]) if costs else "pixels"
+
+    # -- one frame -----------------------------------------------------------------------------
+    def observe(
+        self,
+        user: Settings,
+        pass_ms: dict[str, float],
+        frame_ms: float,
+        display_hz: float | None = None,
+        refining: bool = False,
+    ) -> dict[str, Any]:
+        """Learn from the frame just drawn and choose the next frame's overrides (keys to
+        values, applied over a copy of the user's settings)."""
+        self.frames += 1
+        self._steps = None  # the user may have changed a setting since the last frame
+        fps = target_fps(user, display_hz)
+        self.budget_ms = 1000.0 / fps if fps > 0 else 0.0
+        self.refining = bool(refining)
+        if fps <= 0:  # fixed settings: forget the walking state
+            self.position.clear()
+            self.overrides = {}
+            return self.overrides
+        if self.refining:  # standing still: full quality; the walking state stays
+            self.overrides = {k: v for k, v in FULL_QUALITY.items() if _exists(user, k)}
+            return self.overrides
+        if not math.isfinite(frame_ms) or frame_ms <= 0:
+            self.overrides = self._overrides(user)
+            return self.overrides
+        if self.frames <= WARMUP_FRAMES:
+            self.overrides = self._overrides(user)
+            return self.overrides
+        self._learn(user, pass_ms, frame_ms)
+        self.ema_ms = (
+            frame_ms if self.ema_ms is None else self.ema_ms + EMA * (frame_ms - self.ema_ms)
+        )
+        self.since_change += 1
+        for k in list(self._backoff):
+            self._backoff[k] -= 1
+            if self._backoff[k] <= 0:
+                del self._backoff[k]
+        budget = self.budget_ms
+        if self._restored is not None and self.frames - self._restored[1] > 3 * MIN_FRAMES:
+            self._restored = None
+        if self.since_change >= MIN_FRAMES:
+            if self.ema_ms > budget:
+                self._lower(user, budget)
+            elif self.ema_ms < RESTORE_BELOW * budget:
+                self._restore(user, budget)
+        self.overrides = self._overrides(user)
+        return self.overrides
+
+    def _changed(self, user: Settings, action: str, knob: Knob, value: Any, ema: float) -> None:
+        self.history.append(
+            Decision(
+                self.frames, action, knob.name, value, ema, self.budget_ms, self.largest_cost(user)
+            )
+        )
+        del self.history[:-200]
+        self.since_change = 0
+        self.ema_ms = None
+
+    def _lower(self, user: Settings, budget: float) -> None:
+        """Greedy: steps with the least error per ms saved until the prediction fits."""
+        if self._restored is not None:  # the last restore overshot: hold it back longer
+            key = self._restored[0]
+            self._overshoots[key] = self._overshoots.get(key, 0) + 1
+            self._backoff[key] = 8 * MIN_FRAMES * 2 ** self._overshoots[key]
+            self._restored = None
+        position = dict(self.position)
+        predicted = self.predict(user, position)
+        # The model's scale can lag behind the measured average: correct it to the measurement.
+        correction = (self.ema_ms or predicted) - predicted
+        lowered: list[tuple[Knob, Any]] = []
+        most = MAX_STEPS_FAR if (self.ema_ms or 0.0) > 1.5 * budget else MAX_STEPS_NEAR
+        while predicted + correction > AIM * budget and len(lowered) < most:
+            knobs = [
+                (k, s) for k, s in self._knobs_at(user, position) if position.get(k.key, 0) < len(s)
+            ]
+            normal = [(k, s) for k, s in knobs if not k.fovea]
+            pool = normal or knobs  # the fovea's knobs only when nothing else is left
+            best: tuple[float, Knob, float] | None = None
+            for knob, steps in pool:
+                i = position.get(knob.key, 0)
+                if i >= len(steps):
+                    continue
+                trial = {**position, knob.key: i + 1}
+                saved = predicted - self.predict(user, trial)
+                score = knob.error[i] / max(saved, 1e-3)
+                if best is None or score < best[0]:
+                    best = (score, knob, self.predict(user, trial))
+            if best is None:
+                break
+            _, knob, predicted = best
+            position[knob.key] = position.get(knob.key, 0) + 1
+            lowered.append((knob, position[knob.key]))
+        if lowered:
+            ema = float(self.ema_ms or 0.0)
+            self.position = position
+            for knob, i in lowered:
+                steps = knob.usable_steps(user)
+                self._changed(user, "lower", knob, steps[i - 1][knob.key], ema)
+
+    def _knobs_at(self, user: Settings, position: dict[str, int]) -> list:
+        saved, self.position = self.position, position
+        try:
+            return self._knobs(user)
+        finally:
+            self.position = saved
+
+    def _restore(self, user: Settings, budget: float) -> None:
+        """Give back one step: the fovea's first, then the most error per ms it costs."""
+        predicted = self.predict(user, self.position)
+        correction = (self.ema_ms or predicted) - predicted
+        best: tuple[tuple[int, float], Knob] | None = None
+        for knob, _steps in self._knobs_all(user):
+            i = self.position.get(knob.key, 0)
+            if i <= 0 or knob.key in self._backoff:
+                continue
+            trial = {**self.position, knob.key: i - 1}
+            after = self.predict(user, trial) + correction
+            if after > AIM * budget:
+                continue
+            cost = max(after - predicted - correction, 1e-3)
+            rank = (0 if knob.fovea else 1, -knob.error[i - 1] / cost)
+            if best is None or rank < best[0]:
+                best = (rank, knob)
+        if best is None:
+            return
+        knob = best[1]
+        self.position[knob.key] -= 1
+        i = self.position[knob.key]
+        value = knob.usable_steps(user)[i - 1][knob.key] if i > 0 else user.get(knob.key)
+        if knob.key == "cps.max_level" and i == 0:
+            value = user.cps.mode
+        self._restored = (knob.key, self.frames)
+        self._changed(user, "restore", knob, value, float(self.ema_ms or 0.0))
+
+    # -- words ---------------------------------------------------------------------------------
+    def explain(self, user: Settings) -> list[str]:
+        """The panel's lines: the budget, the frame time, each knob away from the user's
+        value and why."""
+        if self.budget_ms <= 0:
+            return ["Frame rate not held: every setting is as you set it."]
+        lines = [
+            f"Budget {self.budget_ms:.0f} ms a frame ({1000.0 / self.budget_ms:.0f} fps); "
+            + (f"frames take {self.ema_ms:.0f} ms." if self.ema_ms else "measuring.")
+        ]
+        if self.refining:
+            lines.append("Standing still: full quality while the picture refines.")
+            return lines
+        largest = _CATEGORY_WORDS.get(self.largest_cost(user), "drawing")
+        changed = False
+        for knob, steps in self._knobs_all(user):
+            i = self.position.get(knob.key, 0)
+            if i <= 0:
+                continue
+            changed = True
+            value = steps[min(i, len(steps)) - 1][knob.key]
+            why = next((d for d in reversed(self.history) if d.knob == knob.name), None)
+            reason = (
+                f" — frame {why.frame_ms:.0f} ms over the {why.budget_ms:.0f} ms budget; "
+                f"{_CATEGORY_WORDS.get(why.largest, why.largest)} was the largest cost"
+                if why is not None and why.action == "lower"
+                else ""
+            )
+            lines.append(f"{knob.name} {_shown(knob.key, value)}{reason}")
+        if not changed:
+            lines.append(
+                f"Full quality: the frame fits the budget ({largest} is the largest cost)."
+            )
+        return lines
+
+    def summary(self) -> dict[str, Any]:
+        """For the benchmark: the changes made and the knobs at the end."""
+        return {
+            "changes": len(self.history),
+            "lowered": sum(d.action == "lower" for d in self.history),
+            "restored": sum(d.action == "restore" for d in self.history),
+            "final": dict(self.overrides),
+            "history": [
+                {"frame": d.frame, "action": d.action, "knob": d.knob, "value": d.value}
+                for d in self.history[-50:]
+            ],
+        }
+
+
+_CATEGORY_WORDS = {
+    "pixels": "screen effects",
+    "geometry": "drawing the surfaces",
+    "shading": "lighting",
+    "shadows": "shadow maps",
+    "output": "showing the picture",
+    "fixed": "daylight",
+}
+
+
+def _shown(key: str, value: Any) -> str:
+    if key == "render.scale":
+        return f"{round(100 * float(value))}%"
+    if key in ("cps.fovea_deg", "cps.deg_per_level"):
+        return f"{value:g}°"
+    return str(value)
+
+
+def _exists(settings: Settings, key: str) -> bool:
+    try:
+        settings.get(key)
+    except SettingsError:
+        return False
+    return True
+
+
+def apply_overrides(user: Settings, overrides: dict[str, Any]) -> Settings:
+    """A copy of the user's settings with the governor's values (the user's stay as set)."""
+    if not overrides:
+        return user
+    out = user.copy()
+    for key, value in overrides.items():
+        if _exists(out, key):
+            out.set(key, value)
+    return out
