@@ -78,6 +78,11 @@ class FrameContext:
     cps: Any = None  # render.cps.CpsFrame: caps, frame index, edge-ray hits
     edge_hits: Sequence | None = None  # world points per eye, drawn with the level map
     split: Any = None  # render.ab_split.SplitFrame: the presenter's A/B split (None: none)
+    # Progressive refinement (app.refine, render.refine): this frame is sample
+    # ``refine_sample`` of ``refine_target`` of the running mean.
+    refining: bool = False
+    refine_sample: int = 0
+    refine_target: int = 0
 
 
 # Resource name -> where the renderer's targets keep it: (table, attribute).
