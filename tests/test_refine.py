@@ -213,3 +213,25 @@ def test_showroom_stop_walks_then_stands() -> None:
     assert all(np.linalg.norm(np.subtract(a, b)) > 0.1 for a, b in zip(walk, walk[1:]))
     rest = {tuple(path.at_frame(n).position) for n in range(120, path.frame_count())}
     assert len(rest) == 1
+
+
+def test_window_overlay_shows_refining_and_drops_it_when_moving(qtbot) -> None:
+    from PyQt6.QtCore import Qt
+
+    from tests.test_render import checker_scene
+    from ui.main_window import MainWindow
+
+    s = Settings()
+    s.render.refine_samples = 400  # long enough to see it refining
+    w = MainWindow(s, checker_scene())
+    qtbot.addWidget(w)
+    w.view.setFixedSize(240, 135)
+    w.show()
+    qtbot.waitExposed(w)
+    qtbot.waitUntil(lambda: (w.view.status_line or "").startswith("refining"), timeout=20000)
+    assert any(line.startswith("refining") for line in w.view.overlay_text)
+    qtbot.keyPress(w.view, Qt.Key.Key_W)
+    qtbot.waitUntil(lambda: w.view.status_line is None, timeout=20000)
+    assert not any(line.startswith("refin") for line in w.view.overlay_text)
+    qtbot.keyRelease(w.view, Qt.Key.Key_W)
+    w.close()
