@@ -148,6 +148,9 @@ class BenchResult:
     error_vs_full_quality: ErrorVsFullQuality | None = None
     command: str | None = None  # the command that makes the run again (experiments)
     shadows: dict | None = None  # the shadow maps: GPU memory, maps drawn (render.shadows)
+    refine: dict | None = (
+        None  # showroom_stop: refinement after the stop (bench.refine_after_still)
+    )
 
     @property
     def fps_median(self) -> float:
@@ -181,6 +184,8 @@ class BenchResult:
         }
         if self.error_vs_full_quality is not None:
             out["error_vs_full_quality"] = self.error_vs_full_quality.to_dict()
+        if self.refine is not None:
+            out["refine"] = self.refine
         if self.command is not None:
             out["command"] = self.command
         if self.shadows is not None:
