@@ -16,6 +16,7 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
+from app.camera import jittered
 from app.frame import FrameInput
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
@@ -336,6 +337,15 @@ class Renderer:
         self.cps.ensure(self.targets)
         self.step_exposure()
         self._sync_lights()
+        if split is not None and frame.refining:  # the presenter shows the technique as is
+            dx, dy = frame.jitter
+            eyes = [
+                dataclasses.replace(
+                    e, projection=jittered(e.projection, (-dx, -dy), e.width, e.height)
+                )
+                for e in frame.eyes
+            ]
+            frame = dataclasses.replace(frame, eyes=eyes, refining=False, jitter=(0.0, 0.0))
         settings = self.frame_settings(frame)
         ctx = self.frame_context(frame, out, origin, split, settings)
         refine = self._by_name.get("refine")
