@@ -104,14 +104,14 @@ class FrameLog:
         return Stack(t, layers, tops)
 
 
-def target_fps(settings: Settings) -> float:
-    """The frame rate the graph's line marks: ``render.target_fps`` where the settings have
-    that key (none do yet), else :data:`DEFAULT_TARGET_FPS`."""
-    if "render.target_fps" in settings.keys():
-        value = settings.get("render.target_fps")
-        if isinstance(value, (int, float)) and value > 0:
-            return float(value)
-    return DEFAULT_TARGET_FPS
+def target_fps(settings: Settings, display_hz: float | None = None) -> float:
+    """The frame rate the graph's line marks: the governor's target (``render.target_fps``: a
+    number, or ``auto`` = the display's refresh), else :data:`DEFAULT_TARGET_FPS` when the
+    governor is off (0) or there is no display."""
+    from app.governor import target_fps as governed
+
+    value = governed(settings, display_hz)
+    return float(value) if value > 0 else DEFAULT_TARGET_FPS
 
 
 def nice_ceiling(value: float) -> float:

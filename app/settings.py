@@ -481,7 +481,7 @@ class RenderSettings:
         choice_labels={"edge": "Edge-preserving (FSR 1 style)", "bilinear": "Plain (bilinear)"},
     )
     refine: bool = _opt(
-        True,
+        False,
         "While you stand still and your gaze rests, the picture keeps improving frame by "
         "frame until it reaches full quality: smooth edges, the finest textures and full "
         "shading, sharpest where you look first. Any movement starts it again.",

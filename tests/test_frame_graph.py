@@ -55,9 +55,14 @@ def test_stacking_puts_passes_in_order_and_tops_up_to_the_frame_time():
     assert s.peak_ms == pytest.approx(40.0)
 
 
-def test_the_target_is_30_fps_without_a_target_setting_and_the_axis_top_is_round():
-    assert "render.target_fps" not in Settings().keys()
-    assert target_fps(Settings()) == 30.0
+def test_the_target_line_is_the_governors_target_else_30_fps_and_the_axis_top_is_round():
+    s = Settings()
+    assert target_fps(s) == 30.0  # "auto" without a display: the governor is off
+    assert target_fps(s, display_hz=90.0) == 90.0
+    s.set("render.target_fps", "45")
+    assert target_fps(s) == 45.0
+    s.set("render.target_fps", "0")
+    assert target_fps(s, display_hz=90.0) == 30.0
     assert [nice_ceiling(v) for v in (41.7, 50.0, 51.0, 0.3, 120.0, 0.0)] == [
         50.0,
         50.0,

@@ -222,6 +222,7 @@ def test_window_overlay_shows_refining_and_drops_it_when_moving(qtbot) -> None:
     from ui.main_window import MainWindow
 
     s = Settings()
+    s.render.refine = True  # off by default (see app/settings.py)
     s.render.refine_samples = 400  # long enough to see it refining
     w = MainWindow(s, checker_scene())
     qtbot.addWidget(w)
