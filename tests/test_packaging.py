@@ -294,7 +294,7 @@ def test_vrpreview_file_opens_the_model_in_the_real_window(qapp, tmp_path, monke
         (window,) = [
             w
             for w in QApplication.topLevelWidgets()
-            if isinstance(w, MainWindow) and id(w) not in before
+            if isinstance(w, MainWindow) and not any(w is b for b in before)
         ]
         window.wait_for_load()
         seen["title"] = window.windowTitle()
@@ -304,6 +304,6 @@ def test_vrpreview_file_opens_the_model_in_the_real_window(qapp, tmp_path, monke
         return 0
 
     monkeypatch.setattr(QApplication, "exec", exec_once)
-    before = {id(w) for w in QApplication.topLevelWidgets()}
+    before = list(QApplication.topLevelWidgets())  # held: no id is reused
     assert launcher.main([str(model)]) == 0
     assert seen == {"title": "VR Preview — crate", "triangles": 12}
