@@ -55,6 +55,7 @@ from render.passes import (
 )
 from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
+from render.shadow_mask import ShadowMaskPass
 from render.shadows import ShadowPass
 from render.sky import DaylightPass, SkyPass, sky_key
 from render.upscale import render_size
@@ -70,6 +71,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     CpsLevelPass,
     PhotonPass,
     AmbientOcclusionPass,
+    ShadowMaskPass,
     LightingPass,
     CpsLightingPass,
     CpsFilterPass,
@@ -107,6 +109,7 @@ class Renderer:
     cps_levels = _Pass[CpsLevelPass]()
     photons = _Pass[PhotonPass]()
     ao = _Pass[AmbientOcclusionPass]()
+    shadow_mask = _Pass[ShadowMaskPass]()
     lighting = _Pass[LightingPass]()
     cps_lighting = _Pass[CpsLightingPass]()
     cps_filter = _Pass[CpsFilterPass]()
