@@ -21,6 +21,7 @@ from app.scene import Light, Material, Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings
 from assets.showroom import WINDOW_Z, MeshBuilder, build_showroom
+from render import shadow_mask
 from render.offscreen import OffscreenHost
 
 W, H = 640, 360  # both eyes: 320 x 360 each
@@ -72,6 +73,17 @@ def host():
     yield h
     assert not h.renderer.errors
     h.close()
+
+
+MASK_FROM = dict(shadow_mask.MIN_LIGHTS)
+
+
+@pytest.fixture(autouse=True)
+def mask_from_one_light(monkeypatch):
+    """The mask for every shadowed light count, so the few-light scenes here test it too (the
+    renderer's own threshold: test_the_mask_waits_for_enough_hard_lights)."""
+    for mode in MASK_FROM:
+        monkeypatch.setitem(shadow_mask.MIN_LIGHTS, mode, 1)
 
 
 def frame(host: OffscreenHost, scene: Scene):
@@ -205,6 +217,19 @@ def test_the_shadow_mask_gives_the_per_pixel_picture(host, shadows, count):
     # The box's shadow is there (the other lamps light the spot too).
     assert at(off, fi, SHADOWED) - at(full, fi, SHADOWED) > 0.05
     assert at(half, fi, SHADOWED) == pytest.approx(at(full, fi, SHADOWED), abs=0.01)
+
+
+def test_the_mask_waits_for_enough_hard_lights(host, monkeypatch):
+    """Hard shadows of one or two lights are looked up per pixel (cheaper than the mask's own
+    pass), from three on through the mask; soft ones from the first light."""
+    for mode, count in MASK_FROM.items():
+        monkeypatch.setitem(shadow_mask.MIN_LIGHTS, mode, count)
+    assert MASK_FROM == {"hard": 3, "soft": 1}
+    for shadows, count, used in (("hard", 2, 0), ("hard", 3, 3), ("soft", 1, 1)):
+        img, fi = hdr(host, box_scene(mask_lights(count)), shadows)
+        assert host.renderer.shadow_mask.lights == used, (shadows, count)
+        off, _ = hdr(host, box_scene(mask_lights(count)), "off")
+        assert at(off, fi, SHADOWED) - at(img, fi, SHADOWED) > 0.05  # shadowed either way
 
 
 def test_a_static_scene_draws_each_map_once_and_a_moved_light_again(host):
