@@ -214,6 +214,10 @@ class GpuScene:
         self.calls: dict[int, int] = {}  # the geometry pass's draw calls per eye this frame
         self.draw_calls = 0  # every draw call issued for meshes or groups (a running count)
         self._group_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
+        # A group whose visible ranges are several (culled members, levels of detail) is one
+        # glMultiDrawElementsIndirect of them; False: one call per range (measuring).
+        self.multi_draw = True
+        self._indirect: dict[tuple, tuple[moderngl.Buffer, dict[int, tuple[int, int]]]] = {}
         self._group_ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._group_ao_buffers: dict[int, moderngl.Buffer] = {}
         self.lod_bias = 0.0  # render.lod_bias: pixels a simplified level may stray (0: full)
@@ -436,8 +440,31 @@ class GpuScene:
             vao.render(moderngl.TRIANGLES, vertices=g.index_count)
             self.draw_calls += 1
             return g.index_count // 3
-        ranges = self._view_ranges(view_projection, eye, merged=True).get(group, ())
-        return self._draw_ranges(vao, ranges)
+        key = self._view_key(view_projection, eye, True)
+        every = self._view_ranges(view_projection, eye, merged=True)
+        ranges = every.get(group, ())
+        if len(ranges) < 2 or not self.multi_draw:
+            return self._draw_ranges(vao, ranges)
+        if key not in self._indirect:
+            self._indirect[key] = self._commands(every)
+        buffer, offsets = self._indirect[key]
+        start, n = offsets[group]
+        vao.render_indirect(buffer, moderngl.TRIANGLES, count=n, first=start)
+        self.draw_calls += 1
+        return sum(count for _, count in ranges) // 3
+
+    def _commands(
+        self, every: dict[int, list[tuple[int, int]]]
+    ) -> tuple[moderngl.Buffer, dict[int, tuple[int, int]]]:
+        """One view's ranges of every group as indirect draw commands (count, instances,
+        first index, base vertex, base instance) in one buffer, and where each group's are."""
+        rows: list[tuple[int, int, int, int, int]] = []
+        offsets = {}
+        for g, ranges in every.items():
+            offsets[g] = (len(rows), len(ranges))
+            rows += [(count, 1, first, 0, 0) for first, count in ranges]
+        data = np.asarray(rows, np.uint32).reshape(-1, 5)
+        return self.ctx.buffer(data.tobytes()), offsets
 
     def _draw_ranges(self, vao: moderngl.VertexArray, ranges) -> int:
         drawn = 0
@@ -456,12 +483,7 @@ class GpuScene:
         them."""
         table, owner = (self._group_all, self._group_owner) if merged else (self._all, self._owner)
         lod = eye is not None and self.lod_bias > 0 and table.levels > 1
-        key = (
-            merged,
-            np.asarray(view_projection, np.float64).tobytes(),
-            np.asarray(eye.position, np.float64).tobytes() if lod and eye is not None else b"",
-            self.lod_bias if lod else 0.0,
-        )
+        key = self._view_key(view_projection, eye, merged)
         if key in self._range_cache:
             return self._range_cache[key]
         levels = None
@@ -471,8 +493,21 @@ class GpuScene:
         ranges = visible_ranges(table, frustum_planes(view_projection), levels, owner)
         if len(self._range_cache) >= 16:  # two eyes and the shadow maps' faces of a frame
             self._range_cache.clear()
+            for buffer, _ in self._indirect.values():
+                buffer.release()
+            self._indirect.clear()
         self._range_cache[key] = ranges
         return ranges
+
+    def _view_key(self, view_projection: np.ndarray, eye: EyeView | None, merged: bool) -> tuple:
+        table = self._group_all if merged else self._all
+        lod = eye is not None and self.lod_bias > 0 and table.levels > 1
+        return (
+            merged,
+            np.asarray(view_projection, np.float64).tobytes(),
+            np.asarray(eye.position, np.float64).tobytes() if lod and eye is not None else b"",
+            self.lod_bias if lod else 0.0,
+        )
 
     def _vertex_array(
         self,
@@ -573,6 +608,9 @@ class GpuScene:
             for buf in (g.vbo, g.ibo, g.sky_vbo, g.object_vbo):
                 buf.release()
         self.groups.clear()
+        for buffer, _ in self._indirect.values():
+            buffer.release()
+        self._indirect.clear()
         self.object_table.release()
         self.streamer.release()
         for tex in self._maps.values():

@@ -201,3 +201,27 @@ def test_object_ids_are_per_mesh_on_the_merged_path(host):
     for a, b in zip(per_mesh, merged):
         assert len(np.unique(a)) >= 6  # the floor, boxes, glass and background
         assert (a != b).mean() < 0.002
+
+
+def test_a_group_split_into_ranges_is_one_multi_draw_with_the_same_picture(host):
+    """Levels of detail and culled members split a group's index buffer into several ranges:
+    one indirect multi-draw per group draws them, as one call per range would."""
+    scene = room()
+    host.settings.set("render.lod_bias", 16.0)
+    host.renderer.merge_meshes = True
+    host.set_scene(scene)
+    gpu = host.renderer.gpu_scene
+    assert gpu is not None
+    fi = frame(host, scene)
+    gpu.multi_draw = False
+    host.draw(fi)
+    per_range = host.draw(fi).astype(np.float64)
+    calls_ranges, tris_ranges = host.renderer.draw_calls(), host.renderer.triangles_drawn()
+    gpu.multi_draw = True
+    host.draw(fi)
+    multi = host.draw(fi).astype(np.float64)
+    calls_multi, tris_multi = host.renderer.draw_calls(), host.renderer.triangles_drawn()
+    assert tris_multi == tris_ranges
+    assert all(m < r for m, r in zip(calls_multi, calls_ranges)), (calls_multi, calls_ranges)
+    assert all(m == len(gpu.groups) for m in calls_multi)  # the glass: the blend pass
+    assert np.abs(per_range - multi).max() == 0
