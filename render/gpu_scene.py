@@ -108,10 +108,18 @@ class GpuGroup:
     tangents: bool = False
     maps: dict[str, moderngl.Texture] | None = None
     chunks: Chunks | None = None
+    member_columns: list[tuple[int, int]] | None = None  # each member's columns of chunks
 
     @property
     def blended(self) -> bool:
-        return False
+        return self.material.alpha_mode == "BLEND"
+
+    def member_chunks(self, k: int) -> Chunks:
+        """Member ``k``'s chunks as ranges of this group's index buffer."""
+        assert self.chunks is not None and self.member_columns is not None
+        a, b = self.member_columns[k]
+        c = self.chunks
+        return Chunks(c.first[:, a:b], c.count[:, a:b], c.error[:, a:b], c.lo[a:b], c.hi[a:b])
 
 
 def material_defines(mesh: GpuMesh | GpuGroup) -> dict[str, object]:
@@ -202,6 +210,8 @@ class GpuScene:
         self._all, self._owner = merge_chunks([m.chunks for m in self.meshes])
         self.groups: list[GpuGroup] = []
         self.standalone = list(range(len(self.meshes)))  # meshes drawn one by one
+        self.group_of: dict[int, int] = {}  # mesh index -> its group
+        self._member_all, self._member_owner = merge_chunks([])
         if merge:
             self._merge(vertex_data, index_data)
         self._group_all, self._group_owner = merge_chunks([g.chunks for g in self.groups])
@@ -232,16 +242,24 @@ class GpuScene:
         self.set_lights(scene.lights)
 
     def _merge(self, vertex_data: list[np.ndarray], index_data: list[np.ndarray]) -> None:
-        """Group the meshes that are not blended by material (``GpuGroup``), in the order of
-        each group's first mesh; the blended and empty ones stay standalone."""
+        """Group the meshes by material (``GpuGroup``), in the order of each group's first
+        mesh; the empty ones stay standalone. A blended group's members keep their own chunk
+        table (``_member_all``): the blend pass draws them in its back-to-front order."""
         by_material: dict[int, list[int]] = {}
         for i, (src, mesh) in enumerate(zip(self.scene.meshes, self.meshes)):
-            if not mesh.blended and mesh.chunks is not None:
+            if mesh.chunks is not None:
                 by_material.setdefault(src.material, []).append(i)
         grouped = {i for members in by_material.values() for i in members}
         self.standalone = [i for i in range(len(self.meshes)) if i not in grouped]
+        member_chunks: list[Chunks | None] = [None] * len(self.meshes)
         for material_index, members in by_material.items():
-            self.groups.append(self._group(material_index, members, vertex_data, index_data))
+            group = self._group(material_index, members, vertex_data, index_data)
+            for k, i in enumerate(members):
+                self.group_of[i] = len(self.groups)
+                if group.blended:
+                    member_chunks[i] = group.member_chunks(k)
+            self.groups.append(group)
+        self._member_all, self._member_owner = merge_chunks(member_chunks)
 
     def _group(
         self,
@@ -256,6 +274,7 @@ class GpuScene:
         member_chunks: list[Chunks] = [c for c in (self.meshes[i].chunks for i in members) if c]
         levels = max(c.levels for c in member_chunks)
         columns = sum(c.first.shape[1] for c in member_chunks)
+        spans = np.cumsum([0] + [c.first.shape[1] for c in member_chunks]).tolist()
         first = np.zeros((levels, columns), np.int64)
         count = np.zeros((levels, columns), np.int64)
         error = np.zeros((levels, columns))
@@ -302,6 +321,7 @@ class GpuScene:
             first_mesh.tangents,
             first_mesh.maps,
             chunks,
+            list(zip(spans[:-1], spans[1:])),
         )
 
     def write_object_table(self, levels: list[int] | None) -> None:
@@ -453,6 +473,35 @@ class GpuScene:
         self.draw_calls += 1
         return sum(count for _, count in ranges) // 3
 
+    def draw_members(
+        self,
+        vao: moderngl.VertexArray,
+        members: list[int],
+        view_projection: np.ndarray,
+        eye: EyeView | None = None,
+    ) -> int:
+        """Meshes ``members`` of one blended group through its ``vao``, in this order (the
+        blend pass's back to front), each culled and at its level as :meth:`draw` would:
+        one indirect multi-draw of their ranges. Returns the triangles drawn."""
+        if self.cull:
+            every = self._view_ranges(view_projection, eye, merged="members")
+        else:
+            every = visible_ranges(self._member_all, np.zeros((0, 4)), None, self._member_owner)
+        ranges: list[tuple[int, int]] = []
+        for m in members:
+            for first, count in every.get(m, ()):
+                if ranges and ranges[-1][0] + ranges[-1][1] == first:
+                    ranges[-1] = (ranges[-1][0], ranges[-1][1] + count)
+                else:
+                    ranges.append((first, count))
+        if len(ranges) < 2 or not self.multi_draw:
+            return self._draw_ranges(vao, ranges)
+        buffer, _ = self._commands({0: ranges})
+        vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(ranges))
+        buffer.release()
+        self.draw_calls += 1
+        return sum(count for _, count in ranges) // 3
+
     def _commands(
         self, every: dict[int, list[tuple[int, int]]]
     ) -> tuple[moderngl.Buffer, dict[int, tuple[int, int]]]:
@@ -474,14 +523,19 @@ class GpuScene:
         self.draw_calls += len(ranges)
         return drawn // 3
 
+    def _table(self, merged: bool | str) -> tuple[Chunks, np.ndarray]:
+        if merged == "members":  # blended groups' members, in their groups' index buffers
+            return self._member_all, self._member_owner
+        return (self._group_all, self._group_owner) if merged else (self._all, self._owner)
+
     def _view_ranges(
-        self, view_projection: np.ndarray, eye: EyeView | None, merged: bool = False
+        self, view_projection: np.ndarray, eye: EyeView | None, merged: bool | str = False
     ) -> dict[int, list[tuple[int, int]]]:
-        """Every mesh's (``merged``: every group's) ranges to draw for one view, its chunks
-        tested and their levels chosen all at once (real rooms hold hundreds of meshes); the
-        last views' answers are kept, so the passes of a frame that draw the same eye share
-        them."""
-        table, owner = (self._group_all, self._group_owner) if merged else (self._all, self._owner)
+        """Every mesh's (``merged``: every group's; ``"members"``: every blended group
+        member's) ranges to draw for one view, its chunks tested and their levels chosen all
+        at once (real rooms hold hundreds of meshes); the last views' answers are kept, so
+        the passes of a frame that draw the same eye share them."""
+        table, owner = self._table(merged)
         lod = eye is not None and self.lod_bias > 0 and table.levels > 1
         key = self._view_key(view_projection, eye, merged)
         if key in self._range_cache:
@@ -499,8 +553,10 @@ class GpuScene:
         self._range_cache[key] = ranges
         return ranges
 
-    def _view_key(self, view_projection: np.ndarray, eye: EyeView | None, merged: bool) -> tuple:
-        table = self._group_all if merged else self._all
+    def _view_key(
+        self, view_projection: np.ndarray, eye: EyeView | None, merged: bool | str
+    ) -> tuple:
+        table = self._table(merged)[0]
         lod = eye is not None and self.lod_bias > 0 and table.levels > 1
         return (
             merged,

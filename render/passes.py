@@ -152,11 +152,29 @@ def _draw_meshes(
         if scene.groups:
             scene.write_object_table(frame.levels)
         for g, group in enumerate(scene.groups):
+            if group.blended:  # the blend pass draws those, sorted
+                continue
             prog = variant({**material_defines(group), "OBJECT_TABLE": True})
             scene.bind_group_material(prog, g)
             drawn += scene.draw_group(scene.group_vao(prog, g), g, eye.view_projection, eye)
         order = [i for i in scene.standalone if not scene.meshes[i].blended]
-    for index in order:
+    elif scene.groups:
+        scene.write_object_table(frame.levels)
+    k = 0
+    while k < len(order):
+        index = order[k]
+        g = scene.group_of.get(index, -1)
+        if g >= 0:  # a run of one merged group's meshes in the order given: one draw
+            run = [index]
+            while k + len(run) < len(order) and scene.group_of.get(order[k + len(run)]) == g:
+                run.append(order[k + len(run)])
+            k += len(run)
+            prog = variant({**material_defines(scene.groups[g]), "OBJECT_TABLE": True})
+            scene.bind_group_material(prog, g)
+            vao = scene.group_vao(prog, g)
+            drawn += scene.draw_members(vao, run, eye.view_projection, eye)
+            continue
+        k += 1
         mesh = scene.meshes[index]
         prog = variant(material_defines(mesh))
         scene.bind_material(prog, index)
@@ -393,7 +411,11 @@ class EmissivePass(RenderPass):
             if any(scene.meshes[i].material.emissive)
             and not scene.meshes[i].blended  # the blend pass adds their glow
         ]
-        groups = [g for g, group in enumerate(scene.groups) if any(group.material.emissive)]
+        groups = [
+            g
+            for g, group in enumerate(scene.groups)
+            if any(group.material.emissive) and not group.blended
+        ]
         if not emitters and not groups:
             return
         ctx = self.ctx

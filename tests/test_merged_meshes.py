@@ -99,7 +99,7 @@ def per_mesh_afterwards(host):
         host.settings.set(key, Settings().get(key))
 
 
-def test_groups_are_the_opaque_materials():
+def test_groups_are_the_materials():
     host = OffscreenHost(64, 32, Settings())
     try:
         scene = room()
@@ -107,8 +107,14 @@ def test_groups_are_the_opaque_materials():
         gpu = host.renderer.gpu_scene
         assert gpu is not None
         members = {scene.materials[g.material_index].name: g.members for g in gpu.groups}
-        assert members == {"floor": [0], "red": [1, 2, 3, 8], "checker": [4, 5], "glow": [6]}
-        assert gpu.standalone == [7]  # the glass, sorted per mesh by the blend pass
+        assert members == {
+            "floor": [0],
+            "red": [1, 2, 3, 8],
+            "checker": [4, 5],
+            "glow": [6],
+            "glass": [7],
+        }
+        assert gpu.standalone == []
     finally:
         host.close()
 
@@ -135,9 +141,9 @@ def test_draw_calls_drop_to_one_per_material_in_view(host):
     _, _, merged = draw(host, scene, merge=True, frames=1)
     # Per mesh: the floor's visible chunks plus a call per opaque mesh in view (7 of 8).
     assert all(c >= 7 for c in per_mesh), per_mesh
-    # Merged: one call per group, at most a few more where an out-of-view member or a
-    # culled floor chunk splits a group's ranges (4 groups, the glass drawn by the blend pass).
-    assert all(4 <= c <= 6 for c in merged), merged
+    # Merged: one call per opaque group (4; the glass is the blend pass's), a split group's
+    # ranges (the out-of-view box) as one multi-draw.
+    assert merged == [4, 4], merged
 
 
 def test_culling_and_levels_of_detail_stay_per_mesh_inside_a_group(host):
@@ -223,5 +229,52 @@ def test_a_group_split_into_ranges_is_one_multi_draw_with_the_same_picture(host)
     calls_multi, tris_multi = host.renderer.draw_calls(), host.renderer.triangles_drawn()
     assert tris_multi == tris_ranges
     assert all(m < r for m, r in zip(calls_multi, calls_ranges)), (calls_multi, calls_ranges)
-    assert all(m == len(gpu.groups) for m in calls_multi)  # the glass: the blend pass
+    assert all(m == len(gpu.groups) - 1 for m in calls_multi)  # the glass: the blend pass
     assert np.abs(per_range - multi).max() == 0
+
+
+def glass_panes() -> Scene:
+    """Overlapping panes in depth, of two glass materials interleaved (blue, blue, green,
+    blue from far to near), before a grey wall: the blend order shows in the picture."""
+    panes = [
+        quad("blue-far", (0.0, 1.4, -4.0), 0.8, material=1),
+        quad("blue-mid", (0.2, 1.4, -3.5), 0.8, material=1),
+        quad("green", (-0.2, 1.4, -3.0), 0.8, material=2),
+        quad("blue-near", (0.1, 1.5, -2.5), 0.5, material=1),
+    ]
+    return Scene(
+        "glass",
+        [quad("wall", (0.0, 1.4, -5.0), 2.5, material=0), *panes],
+        [
+            Material("wall", (0.6, 0.6, 0.6, 1.0), None, roughness=1.0),
+            Material("blue", (0.1, 0.3, 0.9, 0.5), None, roughness=0.3, alpha_mode="BLEND"),
+            Material("green", (0.1, 0.9, 0.2, 0.5), None, roughness=0.3, alpha_mode="BLEND"),
+        ],
+        [],
+        [Light((0.0, 1.6, 0.0), intensity=10.0, range_m=50.0)],
+        Viewpoint((0.0, 1.4, 0.0)),
+    ).sanitized()
+
+
+def test_blended_meshes_of_one_material_draw_as_one_sorted_call(host):
+    """The blend pass keeps its back-to-front order per mesh: a run of one material's panes
+    is one multi-draw in that order, another material's pane between them splits the run."""
+    scene = glass_panes()
+    per_mesh, _, _ = draw(host, scene, merge=False)
+    calls_per_mesh = host.renderer.frame_draw_calls()
+    host.draw(frame(host, scene))
+    calls_per_mesh = host.renderer.frame_draw_calls() - calls_per_mesh
+    merged, _, _ = draw(host, scene, merge=True)
+    calls_merged = host.renderer.frame_draw_calls()
+    host.draw(frame(host, scene))
+    calls_merged = host.renderer.frame_draw_calls() - calls_merged
+    assert np.abs(per_mesh - merged)[..., :3].max() <= 1
+    # Per eye: the wall, then the panes: per mesh 4 calls; merged blue (far, mid), green,
+    # blue (near): 3. The shadow maps are cached after the first frames.
+    assert calls_per_mesh == 2 * (1 + 4), calls_per_mesh
+    assert calls_merged == 2 * (1 + 3), calls_merged
+    # The order matters: the near blue pane drawn before the green one looks different.
+    gpu = host.renderer.gpu_scene
+    assert gpu is not None
+    blue = gpu.group_of[1]
+    assert [gpu.group_of[i] for i in (1, 2, 4)] == [blue] * 3 and gpu.group_of[3] != blue
