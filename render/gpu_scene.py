@@ -14,17 +14,19 @@ textures (units from ``render.constants.TEXTURE_UNITS``).
 
 Merged meshes (``GpuScene(merge=True)``, the renderer's default): real interiors hold a
 thousand meshes or more, and on a software rasteriser each draw call (its program, uniforms,
-textures and validation) costs more than its triangles. The meshes that are not blended are
-grouped by material into one vertex/index buffer pair per group (``GpuGroup``), each vertex
-carrying its mesh's index (``in_object``). What a per-mesh draw sets as uniforms (the TCR level
+textures and validation) costs more than its triangles. The meshes are grouped by material
+into one vertex/index buffer pair per group (``GpuGroup``), each vertex carrying its mesh's
+index (``in_object``). What a per-mesh draw sets as uniforms (the TCR level
 and tint) is one row per mesh of the per-object table, an SSBO at
 ``render.constants.OBJECT_TABLE_BINDING`` that ``geometry.vert.glsl`` reads under the
 ``OBJECT_TABLE`` variant (``write_object_table``). A group's index buffer holds every member's
 chunks (``app.lod``) level by level: all level-0 ranges first, in member order, then level 1,
 and so on. Culling and level choice stay per chunk, so per mesh (``render.culling`` on the
 groups' chunk table), and the visible ranges that touch are drawn as one call: a group seen
-whole at full detail is one call. ``merge=False`` keeps the per-mesh path (tests, debugging);
-blended meshes always take it (the blend pass sorts them one by one).
+whole at full detail is one call, and a group split into several ranges is one indirect
+multi-draw of them. Blended groups keep each member's chunks too (``draw_members``): the blend
+pass sorts meshes back to front as before and draws each run of one group's meshes in that
+order as one multi-draw. ``merge=False`` keeps the per-mesh path (tests, debugging).
 """
 
 from __future__ import annotations
