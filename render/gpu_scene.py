@@ -221,6 +221,10 @@ class GpuScene:
         n_rows = max(len(self.meshes), 1)
         self.object_table = ctx.buffer(reserve=n_rows * 16)
         self._table_key: bytes | None = None
+        # Each mesh's base colour texture (-1: none), for the table's resident bases.
+        self._texture_of = np.array(
+            [-1 if m.texture is None else m.texture for m in self.meshes], np.int64
+        )
         self._range_cache: dict[tuple, dict[int, list[tuple[int, int]]]] = {}
         self.drawn: dict[int, int] = {}  # triangles drawn per view this frame (eye index)
         self.calls: dict[int, int] = {}  # the geometry pass's draw calls per eye this frame
@@ -337,11 +341,8 @@ class GpuScene:
             lv = np.asarray(levels, np.int64)
             tints = np.asarray(LEVEL_TINTS, np.float32)
             rows[:n, :3] = tints[np.clip(lv, 0, len(LEVEL_TINTS) - 1)]
-            resident = self.streamer.resident
-            base = np.array(
-                [resident[m.texture].base if m.texture is not None else 0 for m in self.meshes]
-            )
-            rows[:n, 3] = lv - base
+            bases = np.array([0, *(r.base for r in self.streamer.resident)], np.int64)
+            rows[:n, 3] = lv - bases[self._texture_of + 1]  # untextured: 0 (unused)
         data = rows.tobytes()
         if data != self._table_key:
             self.object_table.write(data)
