@@ -144,3 +144,49 @@ def test_full_quality_undoes_every_knob_the_governor_moves():
             assert ref.get(key) == value, key
     s.set("render.shadows", "off")  # no shadows stays no shadows: the same scene lit alike
     assert full_quality(s).render.shadows == "off"
+
+
+def test_the_governor_is_read_at_each_presets_own_frame_time():
+    rows = [
+        {"name": FULL, "frame_ms": 300.0, "periphery_flip": float("inf"), "fovea_flip": 0.9},
+        {"name": "preset-a", "frame_ms": 200.0, "periphery_flip": 0.05, "fovea_flip": 0.04},
+        {"name": "preset-b", "frame_ms": 80.0, "periphery_flip": 0.08, "fovea_flip": 0.06},
+        {"name": "governor @ preset-a", "frame_ms": 150.0, "periphery_flip": 0.06},
+        {"name": "governor @ preset-b", "frame_ms": 100.0, "periphery_flip": 0.10},
+    ]
+    curve = governor_study.governor_curve(rows, "periphery_flip")
+    # Full quality closes the curve at error 0, whatever its row holds.
+    assert curve == [(100.0, 0.10), (150.0, 0.06), (300.0, 0.0)]
+    # Halfway between the run at 150 ms (0.06) and full quality at 300 ms (0).
+    assert governor_study.at_time(curve, 225.0) == pytest.approx(0.03)
+    assert governor_study.at_time(curve, 100.0) == pytest.approx(0.10)
+    assert governor_study.at_time(curve, 80.0) is None  # faster than any governor run
+    assert governor_study.at_time([], 80.0) is None
+
+
+def test_pairs_carry_the_governor_at_the_presets_time(monkeypatch):
+    monkeypatch.setattr(governor_study, "PRESETS", (("preset-a", ()), ("preset-b", ())))
+    rows = [
+        {"name": FULL, "frame_ms": 300.0, "periphery_flip": 0.0, "fovea_flip": 0.0},
+        {"name": "preset-a", "frame_ms": 200.0, "periphery_flip": 0.05, "fovea_flip": 0.04},
+        {"name": "preset-b", "frame_ms": 80.0, "periphery_flip": 0.08, "fovea_flip": 0.06},
+        {
+            "name": "governor @ preset-a",
+            "frame_ms": 150.0,
+            "periphery_flip": 0.06,
+            "fovea_flip": 0.03,
+        },
+        {
+            "name": "governor @ preset-b",
+            "frame_ms": 100.0,
+            "periphery_flip": 0.10,
+            "fovea_flip": 0.05,
+        },
+    ]
+    a, b = governor_study.pairs(rows)
+    assert a["governor_periphery_flip_at_preset_ms"] == pytest.approx(0.06 * 2 / 3)
+    assert a["governor_fovea_flip_at_preset_ms"] == pytest.approx(0.03 * 2 / 3)
+    assert b["governor_periphery_flip_at_preset_ms"] is None
+    row_b = governor_study._pairs_markdown([a, b]).splitlines()[-1]
+    cells = [c.strip() for c in row_b.strip("|").split("|")]
+    assert cells[0] == "preset-b" and cells[-2:] == ["-", "-"]

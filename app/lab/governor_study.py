@@ -133,14 +133,42 @@ def governor_runs(presets: list[dict[str, Any]]) -> list[tuple[str, tuple[str, .
     return out
 
 
+def governor_curve(rows: list[dict[str, Any]], key: str) -> list[tuple[float, float]]:
+    """The governor's (frame ms, ``key``) points, by frame time, ending at full quality (the
+    governor with all the time it wants draws it: error 0)."""
+    points = []
+    for r in rows:
+        ms, v = r.get("frame_ms"), r.get(key)
+        if r["name"].startswith(GOVERNOR) or r["name"] == FULL:
+            value = 0.0 if r["name"] == FULL else v
+            if isinstance(ms, (int, float)) and isinstance(value, (int, float)):
+                if np.isfinite(ms) and np.isfinite(value):
+                    points.append((float(ms), float(value)))
+    return sorted(points)
+
+
+def at_time(curve: list[tuple[float, float]], ms: float) -> float | None:
+    """The curve's value at ``ms``, linear between the two points around it; None outside it
+    (no extrapolation: the governor was not measured there)."""
+    if not curve or not curve[0][0] <= ms <= curve[-1][0]:
+        return None
+    xs, ys = zip(*curve)
+    return float(np.interp(ms, xs, ys))
+
+
 def pairs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Each preset beside the governor held at its frame rate."""
+    """Each preset beside the governor held at its frame rate, and the governor's error at
+    the preset's own frame time (interpolated along the governor's runs): the fair pair when
+    the governor did not run at exactly the preset's time."""
     by_name = {r["name"]: r for r in rows}
+    periphery = governor_curve(rows, "periphery_flip")
+    fovea = governor_curve(rows, "fovea_flip")
     out = []
     for name, _sets in PRESETS:
         p, g = by_name.get(name), by_name.get(f"{GOVERNOR} @ {name}")
         if p is None or g is None:
             continue
+        ms = float(p["frame_ms"])
         out.append(
             {
                 "preset": name,
@@ -150,6 +178,8 @@ def pairs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "governor_periphery_flip": g["periphery_flip"],
                 "preset_fovea_flip": p.get("fovea_flip"),
                 "governor_fovea_flip": g.get("fovea_flip"),
+                "governor_periphery_flip_at_preset_ms": at_time(periphery, ms),
+                "governor_fovea_flip_at_preset_ms": at_time(fovea, ms),
             }
         )
     return out
@@ -169,6 +199,8 @@ def _pairs_markdown(table: list[dict[str, Any]]) -> str:
         "governor periphery FLIP",
         "preset fovea FLIP",
         "governor fovea FLIP",
+        "governor periphery FLIP at the preset's ms",
+        "governor fovea FLIP at the preset's ms",
     )
     body = [
         [
@@ -179,6 +211,8 @@ def _pairs_markdown(table: list[dict[str, Any]]) -> str:
             num(t["governor_periphery_flip"], ".4f"),
             num(t["preset_fovea_flip"], ".4f"),
             num(t["governor_fovea_flip"], ".4f"),
+            num(t["governor_periphery_flip_at_preset_ms"], ".4f"),
+            num(t["governor_fovea_flip_at_preset_ms"], ".4f"),
         ]
         for t in table
     ]
@@ -186,7 +220,11 @@ def _pairs_markdown(table: list[dict[str, Any]]) -> str:
         "\n## The governor at each preset's frame rate\n\n"
         "Each fixed preset, and the governor asked for that preset's frame rate "
         "(render.target_fps = 1000 / the preset's median frame time): lower periphery FLIP "
-        "and fovea FLIP are better.\n\n" + markdown(header, body) + "\n"
+        "and fovea FLIP are better. The last two columns read the governor's error at the "
+        "preset's own frame time, linear between the governor's runs around it (and full "
+        "quality, error 0, at its time); '-' where no run brackets it.\n\n"
+        + markdown(header, body)
+        + "\n"
     )
 
 
