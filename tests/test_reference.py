@@ -106,8 +106,8 @@ def rendered(tmp_path_factory):
 
 
 def test_reference_is_lit_and_in_our_units(rendered):
-    """The floor under the lamp: Cycles gives the physical I / d^2 / pi, ours that times our
-    falloff d^2 / (d^2 + 1) and range window (render/shaders/shading.glsl)."""
+    """The floor under the lamp: Cycles gives the physical I / d^2 / pi, ours the same inverse
+    square times our range window (app.scene.lamp_falloff, render/shaders/shading.glsl)."""
     _scene, s, ref, ours, _cache = rendered
     hdr = ours.hdr
     assert not ref.cached
@@ -120,7 +120,8 @@ def test_reference_is_lit_and_in_our_units(rendered):
     physical = LAMP_CD / d2 / math.pi
     assert ref_l == pytest.approx(physical, rel=0.1)
     window = (1.0 - (d2 / 100.0) ** 2) ** 2
-    assert our_l == pytest.approx(ref_l * d2 / (d2 + 1.0) * window, rel=0.1)
+    assert our_l == pytest.approx(physical * window, rel=0.05)
+    assert our_l == pytest.approx(ref_l * window, rel=0.1)
 
 
 def test_camera_matches(rendered):

@@ -367,5 +367,7 @@ def test_the_photon_tracer_emits_a_spot_within_its_cone_only():
     cos_o, cos_i = math.cos(math.radians(outer)), math.cos(math.radians(inner))
     cone = np.clip((-d[:, 1] - cos_o) / (cos_i - cos_o), 0.0, 1.0) ** 2
     dist2 = np.min(HALF / np.abs(d), axis=1) ** 2
-    expected = 4 * np.pi * spot.intensity * np.mean(cone * dist2 / (dist2 + 1)) * 0.5
+    # the renderer's falloff times d^2 (app.scene.lamp_falloff): the window, the 10 cm floor
+    first_hit = dist2 / np.maximum(dist2, 0.01)
+    expected = 4 * np.pi * spot.intensity * np.mean(cone * first_hit) * 0.5
     assert pm.power.sum(axis=0, dtype=np.float64) == pytest.approx([expected] * 3, rel=0.05)

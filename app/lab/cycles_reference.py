@@ -16,10 +16,9 @@ Units (checked by tests/test_reference.py, a white floor under a 1 cd lamp):
   leave photometric units: a radiometric export would be ``4 pi I / 683`` W and every pixel
   683 times smaller). A spot is the same lamp with Blender's cone (Blender spots do not
   concentrate their power), a sun of E lux has strength E.
-- Our lamps fall off as 1 / (d^2 + 1) times a smooth window that reaches 0 at ``range_m``
-  (render/shaders/shading.glsl); Cycles' as 1 / d^2 with no range: at 1 m ours is half as
-  bright, at 3 m 0.9 of it. The reference is the physical one; the difference is one of the
-  things FLIP measures.
+- Our lamps fall off as the physical 1 / d^2 (floored at 10 cm, ``app.scene.lamp_falloff``)
+  times a smooth window that reaches 0 at ``range_m`` (render/shaders/shading.glsl); Cycles'
+  as 1 / d^2 with no range: the same up to the window (0.98 of it at a third of the range).
 - ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` has no
   counterpart: Cycles computes the light bounced off walls instead.
 
