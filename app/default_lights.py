@@ -66,7 +66,9 @@ def default_lights(scene: Scene, spawn: SpawnResult, caster: RayCaster) -> list[
     for pos, target in zip(positions, targets, strict=True):
         dist, _ = caster.cast_many(np.repeat(pos[None, :], len(dirs), axis=0), dirs)
         hits = dist[np.isfinite(dist)]
-        typical = float(np.median(hits)) if hits.size >= len(dirs) // 4 else diag / 2.0
+        # Few hits (a light outside an object): the object's centre is where its light goes.
+        centre_dist = float(np.linalg.norm(pos - (lo + hi) / 2.0))
+        typical = float(np.median(hits)) if hits.size >= len(dirs) // 4 else centre_dist
         typical = max(typical, 0.1)
         rng = max(3.0 * typical, diag / 3.0)
         intensity = target / float(lamp_falloff(typical * typical, rng))
