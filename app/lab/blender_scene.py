@@ -200,7 +200,29 @@ def build_material(bpy, m: dict, job: dict):
         else:
             bsdf.inputs["Emission Color"].default_value = glow
         bsdf.inputs["Emission Strength"].default_value = 1.0
+    if m.get("shadowless"):
+        _let_light_through(tree, bsdf, sky=bool(job.get("sky")))
     return mat
+
+
+def _let_light_through(tree, bsdf, sky: bool) -> None:
+    """A surface that casts no shadow in our renderer (render/shadows.py ``casts``: a glowing
+    pane showing the sky, a lamp's shade or bulb): shadow rays pass it, so lamps shine through
+    their shades; with daylight on, every ray but the camera's (the sky beyond the pane lights
+    the room through it, and the pane is what the camera sees, as in our frame)."""
+    path = tree.nodes.new("ShaderNodeLightPath")
+    clear = tree.nodes.new("ShaderNodeBsdfTransparent")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    if sky:
+        tree.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+        tree.links.new(clear.outputs["BSDF"], mix.inputs[1])
+        tree.links.new(bsdf.outputs["BSDF"], mix.inputs[2])
+    else:
+        tree.links.new(path.outputs["Is Shadow Ray"], mix.inputs["Fac"])
+        tree.links.new(bsdf.outputs["BSDF"], mix.inputs[1])
+        tree.links.new(clear.outputs["BSDF"], mix.inputs[2])
+    out = tree.nodes["Material Output"]
+    tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
 
 
 def build_lights(bpy, job: dict) -> None:

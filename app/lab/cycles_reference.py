@@ -313,14 +313,16 @@ class ReferenceJob:
         return d
 
     def digest(self, version: str | None) -> str:
-        """A content hash of geometry, materials, textures, lights, sky, view, size, samples
-        and the bpy version (the display's exposure is not in it: it is applied afterwards)."""
+        """A content hash of geometry, materials, textures, lights, sky, view, size, samples,
+        the bpy version and the Cycles side's script (the display's exposure is not in it: it
+        is applied afterwards)."""
         h = hashlib.sha256()
         d = self.description()
         d.pop("exposure")
         d.pop("threads")
         h.update(json.dumps(d, sort_keys=True).encode())
         h.update(str(version).encode())
+        h.update(WORKER.read_bytes())  # a change to the Cycles side renders afresh
         for name in sorted(self.arrays):
             a = np.ascontiguousarray(self.arrays[name])
             h.update(name.encode() + str(a.shape).encode() + a.tobytes())
@@ -346,6 +348,8 @@ def material_for(m: Material) -> dict[str, Any]:
         "emissive_texture": m.emissive_texture,
         "alpha_mode": m.alpha_mode,
         "alpha_cutoff": float(m.alpha_cutoff),
+        # casts no shadow in our renderer (render/shadows.py casts(): glowing, not glass)
+        "shadowless": bool(any(m.emissive)) and m.alpha_mode != "BLEND",
     }
 
 
