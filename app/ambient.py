@@ -70,59 +70,88 @@ def estimate_ambient(
     An empty scene, one without lights, or one whose every surface is black gives 0 (no light
     comes back), never an error."""
     lights = list(scene.lights if lights is None else lights)
-    tris, owner, _vn = _scene_geometry(scene)
-    if tris.shape[0] == 0 or not lights:
+    if not lights:
         return NONE
-    if caster is None:
-        cached = getattr(scene, "ray_caster", None)
-        caster = cached if isinstance(cached, RayCaster) else RayCaster(tris)
-    finite = np.isfinite(tris).all(axis=(1, 2))
-    tris, owner = tris[finite], owner[finite]
-    cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    length = np.linalg.norm(cross, axis=1)
-    area = 0.5 * length
-    if not np.isfinite(area).all() or area.sum() <= 0.0:
-        return NONE
-    normal = cross / np.maximum(length, 1e-30)[:, None]
-    rho_mesh, _emit = _mesh_optics(scene, [])
-    rho = rho_mesh[owner] @ LUMA
-    mean_albedo = float((rho * area).sum() / area.sum())
+    return AmbientProbe(scene, caster, samples, seed).estimate(lights)
 
-    rng = np.random.default_rng(seed)
-    pick = rng.choice(len(area), size=samples, p=area / area.sum())
-    u, v = rng.random(samples), rng.random(samples)
-    su = np.sqrt(u)
-    b1, b2 = su * (1.0 - v), su * v
-    t = tris[pick]
-    points = t[:, 0] + b1[:, None] * (t[:, 1] - t[:, 0]) + b2[:, None] * (t[:, 2] - t[:, 0])
-    n = normal[pick]
-    diag = float(np.linalg.norm(tris.reshape(-1, 3).max(0) - tris.reshape(-1, 3).min(0)))
-    eps = 1e-4 * max(diag, 1e-3)
 
-    # Every surface is two-sided (as the renderer draws it): each face takes the lamps' light
-    # from its own side, and receives the bounced light in proportion to how much of the scene
-    # it sees (its closure c: the wall's inner face 1, its outer face 0, a table top in between).
-    # A face receives c times the mean exitance of what it sees (reciprocity), and what it sees
-    # is weighted by c too: B_1 = sum(A rho E c) / sum(A c), E_1 = B_1 sum(A c^2) / sum(A c);
-    # each further bounce keeps sum(A rho c^2) / sum(A c).
-    r = rho[pick]
-    sent = seen = seen2 = kept_sum = direct_sum = 0.0
-    for side in (1.0, -1.0):
-        face_n = n * side
-        e = _direct(points, face_n, lights, caster, eps)
-        c = _closure(points, face_n, caster, eps, rng)
-        sent += float((r * e * c).sum())
-        seen += float(c.sum())
-        seen2 += float((c * c).sum())
-        kept_sum += float((r * c * c).sum())
-        direct_sum += float((e * c).sum())
-    if seen <= 0.0:  # nothing sees anything: an open sheet, no light comes back
-        return AmbientEstimate(0.0, 0.0, 0.0, mean_albedo, 0.0)
-    first = sent / seen * (seen2 / seen)
-    kept = min(kept_sum / seen, MAX_KEPT)
-    indirect = first / (1.0 - kept)
-    closure = seen / (2.0 * samples)
-    return AmbientEstimate(indirect / math.pi, direct_sum / seen, first, mean_albedo, closure)
+class AmbientProbe:
+    """What the estimate needs of a scene alone, found once: surface points spread by area,
+    their reflectance and how much of the scene each of their two faces sees. ``estimate``
+    then casts only the lamps' shadow rays, so a moving sun costs a few milliseconds."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        caster: RayCaster | None = None,
+        samples: int = SAMPLES,
+        seed: int = SEED,
+    ) -> None:
+        self.points = np.zeros((0, 3))
+        self.mean_albedo = 0.0
+        tris, owner, _vn = _scene_geometry(scene)
+        if tris.shape[0] == 0:
+            return
+        if caster is None:
+            cached = getattr(scene, "ray_caster", None)
+            caster = cached if isinstance(cached, RayCaster) else RayCaster(tris)
+        self.caster = caster
+        finite = np.isfinite(tris).all(axis=(1, 2))
+        tris, owner = tris[finite], owner[finite]
+        cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        length = np.linalg.norm(cross, axis=1)
+        area = 0.5 * length
+        if tris.shape[0] == 0 or not np.isfinite(area).all() or area.sum() <= 0.0:
+            return
+        normal = cross / np.maximum(length, 1e-30)[:, None]
+        rho_mesh, _emit = _mesh_optics(scene, [])
+        rho = rho_mesh[owner] @ LUMA
+        self.mean_albedo = float((rho * area).sum() / area.sum())
+
+        rng = np.random.default_rng(seed)
+        pick = rng.choice(len(area), size=samples, p=area / area.sum())
+        u, v = rng.random(samples), rng.random(samples)
+        su = np.sqrt(u)
+        b1, b2 = su * (1.0 - v), su * v
+        t = tris[pick]
+        self.points = (
+            t[:, 0] + b1[:, None] * (t[:, 1] - t[:, 0]) + b2[:, None] * (t[:, 2] - t[:, 0])
+        )
+        self.normal = normal[pick]
+        self.rho = rho[pick]
+        diag = float(np.linalg.norm(tris.reshape(-1, 3).max(0) - tris.reshape(-1, 3).min(0)))
+        self.eps = 1e-4 * max(diag, 1e-3)
+        # Every surface is two-sided (as the renderer draws it): each face sees the scene by
+        # its closure c (a wall's inner face 1, its outer face 0, a table top in between).
+        self.closure = [
+            _closure(self.points, self.normal * side, caster, self.eps, rng) for side in (1.0, -1.0)
+        ]
+
+    def estimate(self, lights: Sequence[Light]) -> AmbientEstimate:
+        """The estimate under ``lights``: each face takes the lamps' light from its own side.
+        A face receives c times the mean exitance of what it sees (reciprocity), and what it
+        sees is weighted by c too: B_1 = sum(A rho E c) / sum(A c), E_1 = B_1 sum(A c^2) /
+        sum(A c); each further bounce keeps sum(A rho c^2) / sum(A c)."""
+        if not len(self.points) or not lights:
+            return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
+        r = self.rho
+        sent = seen = seen2 = kept_sum = direct_sum = 0.0
+        for side, c in zip((1.0, -1.0), self.closure, strict=True):
+            e = _direct(self.points, self.normal * side, lights, self.caster, self.eps)
+            sent += float((r * e * c).sum())
+            seen += float(c.sum())
+            seen2 += float((c * c).sum())
+            kept_sum += float((r * c * c).sum())
+            direct_sum += float((e * c).sum())
+        if seen <= 0.0:  # nothing sees anything: an open sheet, no light comes back
+            return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
+        first = sent / seen * (seen2 / seen)
+        kept = min(kept_sum / seen, MAX_KEPT)
+        indirect = first / (1.0 - kept)
+        closure = seen / (2.0 * len(self.points))
+        return AmbientEstimate(
+            indirect / math.pi, direct_sum / seen, first, self.mean_albedo, closure
+        )
 
 
 def _direct(

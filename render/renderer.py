@@ -17,7 +17,7 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
-from app.ambient import estimate_ambient
+from app.ambient import AmbientProbe
 from app.frame import FrameInput
 from app.governor import Governor, apply_overrides
 from app.paths import FIXED_DT
@@ -142,9 +142,9 @@ class Renderer:
         self._sun: Light | None = None
         self._sun_key: tuple | None = None
         self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
-        # The estimated ambient term for a scene and its lights, and the caster it used.
+        # The estimated ambient term for a scene and its lights, and the scene's probe.
         self._ambient: tuple[GpuScene, list[Light], float] | None = None
-        self._ambient_caster: tuple[GpuScene, RayCaster] | None = None
+        self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
@@ -283,11 +283,11 @@ class Renderer:
         lights = self.frame_lights()
         cached = self._ambient
         if cached is None or cached[0] is not scene or cached[1] != lights:
-            if self._ambient_caster is None or self._ambient_caster[0] is not scene:
+            if self._ambient_probe is None or self._ambient_probe[0] is not scene:
                 own = scene.scene.ray_caster
-                caster = own if isinstance(own, RayCaster) else RayCaster(scene.scene.triangles())
-                self._ambient_caster = (scene, caster)
-            value = estimate_ambient(scene.scene, lights, self._ambient_caster[1]).ambient
+                caster = own if isinstance(own, RayCaster) else None
+                self._ambient_probe = (scene, AmbientProbe(scene.scene, caster))
+            value = self._ambient_probe[1].estimate(lights).ambient
             self._ambient = cached = (scene, list(lights), value)
         return cached[2]
 
