@@ -529,6 +529,9 @@ def usable(feature: Feature, settings: Settings) -> str | None:
     return None
 
 
+SETTLE_FRAMES = 3  # frames drawn per variant in a comparison, the last one kept
+
+
 def our_frames(
     scene: Scene, view: Viewpoint, size: tuple[int, int], variants: dict[str, Settings]
 ) -> dict[str, OurFrame]:
@@ -536,7 +539,10 @@ def our_frames(
 
     One host and one session draw them all, as the window does: the session ticks once at
     the view (gaze at the centre, texture levels, the coarse-shading caps) and the settings
-    are changed in place between frames, as the panels change them."""
+    are changed in place between frames, as the panels change them. Each variant's picture is
+    the settled one, as a user sees it after a moment at the view: the sky's visibility baked
+    (it lights the room through the windows only once baked), every shadow map drawn (the
+    per-frame budget of shadow redraws lifted) and the last of ``SETTLE_FRAMES`` frames."""
     from app.paths import FIXED_DT
     from app.session import Session
     from render.offscreen import OffscreenHost  # GL only when a comparison runs
@@ -554,10 +560,15 @@ def our_frames(
             for key in settings.keys():
                 if live.get(key) != settings.get(key):
                     live.set(key, settings.get(key))
-            session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
-            session.eye_size = size
-            session.tick(FIXED_DT)
-            img = host.draw(session.frame_input(*size))
+            live.set("render.shadow_updates_per_frame", 64)  # every shadow map at once
+            if live.sky.enabled and host.renderer.gpu_scene is not None:
+                with host.ctx:
+                    host.renderer.daylight.wait_for_visibility(host.renderer.gpu_scene)
+            for _ in range(SETTLE_FRAMES):
+                session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
+                session.eye_size = size
+                session.tick(FIXED_DT)
+                img = host.draw(session.frame_input(*size))
             # the exposure the present pass applied (metered, with the exposure branch)
             scale = float(getattr(host.renderer, "_exposure_scale", 1.0))
             out[name] = OurFrame(
