@@ -35,6 +35,7 @@ import numpy as np
 from app.photons import _mesh_optics, _scene_geometry
 from app.raycast import RayCaster
 from app.scene import Light, Scene, lamp_falloff
+from app.sky_light import occluders
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 SAMPLES = 2048  # surface points (the estimate moves by about 1 % between seeds)
@@ -92,10 +93,14 @@ class AmbientProbe:
         tris, owner, _vn = _scene_geometry(scene)
         if tris.shape[0] == 0:
             return
-        if caster is None:
+        # Rays meet what hides light in the renderer: glowing panes and glass let it through
+        # (app.sky_light.occluders); the given caster serves when nothing is left out.
+        blocking = occluders(scene)
+        if caster is None or blocking.shape[0] != tris.shape[0]:
             cached = getattr(scene, "ray_caster", None)
-            caster = cached if isinstance(cached, RayCaster) else RayCaster(tris)
-        self.caster = caster
+            whole = blocking.shape[0] == tris.shape[0] and isinstance(cached, RayCaster)
+            caster = cached if whole and isinstance(cached, RayCaster) else RayCaster(blocking)
+        self.caster: RayCaster = caster
         finite = np.isfinite(tris).all(axis=(1, 2))
         tris, owner = tris[finite], owner[finite]
         cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
@@ -127,17 +132,25 @@ class AmbientProbe:
             _closure(self.points, self.normal * side, caster, self.eps, rng) for side in (1.0, -1.0)
         ]
 
-    def estimate(self, lights: Sequence[Light]) -> AmbientEstimate:
+    def estimate(
+        self, lights: Sequence[Light], sky_sh: np.ndarray | None = None
+    ) -> AmbientEstimate:
         """The estimate under ``lights``: each face takes the lamps' light from its own side.
         A face receives c times the mean exitance of what it sees (reciprocity), and what it
         sees is weighted by c too: B_1 = sum(A rho E c) / sum(A c), E_1 = B_1 sum(A c^2) /
-        sum(A c); each further bounce keeps sum(A rho c^2) / sum(A c)."""
-        if not len(self.points) or not lights:
+        sum(A c); each further bounce keeps sum(A rho c^2) / sum(A c).
+
+        ``sky_sh``: the sky's light (``app.sky.SkyBake.sh``, light leaving a white surface per
+        normal, cd/m2) with daylight on; a face then also takes pi SH(n) times the share of
+        its rays that leave the scene (1 - c), and that light bounces as the lamps' does."""
+        if not len(self.points) or (not lights and sky_sh is None):
             return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
         r = self.rho
         sent = seen = seen2 = kept_sum = direct_sum = 0.0
         for side, c in zip((1.0, -1.0), self.closure, strict=True):
             e = _direct(self.points, self.normal * side, lights, self.caster, self.eps)
+            if sky_sh is not None:
+                e = e + _sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)
             sent += float((r * e * c).sum())
             seen += float(c.sum())
             seen2 += float((c * c).sum())
@@ -193,6 +206,14 @@ def _direct(
         seen = hit >= dist_l[lit] - 2.0 * eps
         out[lit] += np.where(seen, lum * cos[lit] * fall[lit], 0.0)
     return out
+
+
+def _sky_irradiance(normal: np.ndarray, sky_sh: np.ndarray) -> np.ndarray:
+    """The open sky's irradiance (lux, luminance) on faces with ``normal``: pi SH(n)."""
+    from app.sky_model import sh_basis
+
+    white = sh_basis(normal) @ np.asarray(sky_sh, np.float64).reshape(9, 3)
+    return math.pi * np.maximum(white @ LUMA, 0.0)
 
 
 def _cone(light: Light, to_light: np.ndarray) -> np.ndarray:

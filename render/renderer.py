@@ -143,7 +143,7 @@ class Renderer:
         self._sun_key: tuple | None = None
         self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
         # The estimated ambient term for a scene and its lights, and the scene's probe.
-        self._ambient: tuple[GpuScene, list[Light], float] | None = None
+        self._ambient: tuple[GpuScene, tuple, float] | None = None
         self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
@@ -271,8 +271,9 @@ class Renderer:
         )
 
     def ambient_term(self) -> float:
-        """The frame's ambient term: estimated from the frame's lights (``app.ambient``, once per
-        scene and set of lights) with ``render.ambient_estimate``, else ``render.ambient``; a
+        """The frame's ambient term: estimated from the frame's lights and the sky
+        (``app.ambient``, once per scene, set of lights and sky) with
+        ``render.ambient_estimate``, else ``render.ambient``; a
         photon map in use brings the bounced light itself, so it keeps ``render.ambient``."""
         r = self.settings.render
         scene = self.gpu_scene
@@ -281,14 +282,17 @@ class Renderer:
         if self.photons.photons is not None and deferred(self.settings):
             return float(r.ambient)
         lights = self.frame_lights()
+        sky = scene_sky(self.settings.sky, scene.scene) if self.settings.sky.enabled else None
+        key = (list(lights), sky_key(sky) if sky is not None else None)
         cached = self._ambient
-        if cached is None or cached[0] is not scene or cached[1] != lights:
+        if cached is None or cached[0] is not scene or cached[1] != key:
             if self._ambient_probe is None or self._ambient_probe[0] is not scene:
                 own = scene.scene.ray_caster
                 caster = own if isinstance(own, RayCaster) else None
                 self._ambient_probe = (scene, AmbientProbe(scene.scene, caster))
-            value = self._ambient_probe[1].estimate(lights).ambient
-            self._ambient = cached = (scene, list(lights), value)
+            sh = self.daylight.update_sky(sky).sh if sky is not None else None
+            value = self._ambient_probe[1].estimate(lights, sh).ambient
+            self._ambient = cached = (scene, key, value)
         return cached[2]
 
     def step_exposure(self) -> None:

@@ -94,3 +94,39 @@ def test_the_frame_takes_the_estimate():
     want = 0.5 * (estimate_ambient(scene).ambient - s.render.ambient)
     assert want > 0.05
     assert estimated - fixed == pytest.approx(want, rel=0.05)
+
+
+def test_a_glowing_pane_lets_the_sky_and_the_sun_in():
+    """The sky's and the sun's bounce come in through a window whose pane glows (it casts no
+    shadow in the renderer, so it hides no light here either), as through an open one."""
+    from app.ambient import AmbientProbe
+    from app.sky import bake_sky
+    from tests.test_photons import HALF
+
+    walls = [m for m in _box_walls() if m.name != "wall11"]  # the ceiling is the window
+    pane = _quad(
+        "pane",
+        np.array(
+            [
+                [-HALF[0], HALF[1], -HALF[2]],
+                [HALF[0], HALF[1], -HALF[2]],
+                [HALF[0], HALF[1], HALF[2]],
+                [-HALF[0], HALF[1], HALF[2]],
+            ]
+        ),
+        np.array([0.0, -1.0, 0.0]),
+        1,
+    )
+    mats = [Material("grey", (0.5, 0.5, 0.5, 1.0)), Material("sky", emissive=(0.6, 0.8, 1.0))]
+    open_box = Scene("open", walls, mats[:1])
+    glazed = Scene("glazed", [*walls, pane], mats)
+    s = Settings()
+    s.sky.enabled = True
+    sh = bake_sky(s).sh
+    sun = Light((0, 0, 0), (1, 1, 1), 100.0, kind="directional", direction=(0, -1, 0))
+    for lights, sky in (([], sh), ([sun], None)):
+        through = AmbientProbe(glazed).estimate(lights, sky).ambient
+        assert through > 0.0
+        assert through == pytest.approx(
+            AmbientProbe(open_box).estimate(lights, sky).ambient, rel=0.1
+        )
