@@ -362,12 +362,21 @@ class RenderSettings:
     )
     ambient: float = _opt(
         0.06,
-        "Light that reaches every surface evenly, so shadows are never fully black.",
+        "Light that reaches every surface evenly, so shadows are never fully black. Used "
+        "when the even light is not worked out from the lamps, and with bounced light on.",
         label="Ambient light",
         lo=0.0,
         hi=4.0,
         decimals=2,
         step=0.01,
+    )
+    ambient_estimate: bool = _opt(
+        True,
+        "Works the even light out from the lamps and the sun: how much of their light the "
+        "room's surfaces send back, so a pale lit room gets more of it than a dark one. "
+        "Off: the fixed ambient light.",
+        label="Even light from the lamps",
+        paper="Split-flux estimate of the indirect light (lighting design's enclosure model)",
     )
     ao: str = _opt(
         "off",

@@ -8,10 +8,13 @@ fails if one does). Python code imports the names from here.
 from __future__ import annotations
 
 from app.cps import MAX_LEVEL
+from app.scene import LIGHT_MIN_DIST2
 
 # Lights: the uniform block holds this many (std140, three vec4 each: 48 KiB of the 64 KiB
 # block limit).
 MAX_LIGHTS = 1024
+# A lamp's inverse-square falloff 1 / max(d^2, LIGHT_MIN_DIST2) (m2): LIGHT_MIN_DIST2 is
+# defined with the scene model (app.scene.lamp_falloff, the CPU side) and injected from here.
 # Shadow maps (render/shadows.py): tiles of one depth atlas, SHADOW_ATLAS texels square; a
 # point light takes six tiles (cube faces), a spot or the sun one.
 MAX_SHADOW_TILES = 64
@@ -126,6 +129,7 @@ def _glsl(value: object) -> str:
 # What every shader sees (values as GLSL text).
 SHADER_DEFINES: dict[str, object] = {
     "MAX_LIGHTS": MAX_LIGHTS,
+    "LIGHT_MIN_DIST2": repr(float(LIGHT_MIN_DIST2)),
     "LIGHT_TILE": LIGHT_TILE,
     "MAX_PER_TILE": MAX_PER_TILE,
     "ALL_LIGHTS": f"{ALL_LIGHTS}u",

@@ -17,10 +17,12 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
+from app.ambient import AmbientProbe
 from app.frame import FrameInput
 from app.governor import Governor, apply_overrides
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
+from app.raycast import RayCaster
 from app.scene import Light, Scene
 from app.settings import Settings
 from app.sky import scene_sky, sun_light
@@ -52,6 +54,7 @@ from render.passes import (
     ObjectIdPass,
     OverlayPass,
     PresentPass,
+    deferred,
 )
 from render.photons import PhotonPass
 from render.shaders import ShaderLibrary
@@ -142,6 +145,9 @@ class Renderer:
         self._sun: Light | None = None
         self._sun_key: tuple | None = None
         self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
+        # The estimated ambient term for a scene and its lights, and the scene's probe.
+        self._ambient: tuple[GpuScene, tuple, float] | None = None
+        self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
@@ -261,7 +267,7 @@ class Renderer:
             eyes=frame.eyes,
             scene=self.gpu_scene or self._empty,
             light_scale=1.0,  # lamps as the model gives them: Brightness is in the exposure
-            ambient=r.ambient,
+            ambient=self.ambient_term(),
             exposure=self._exposure_scale * r.exposure,
             out=out,
             out_origin=origin,
@@ -274,6 +280,31 @@ class Renderer:
             edge_hits=frame.edge_hits,
             split=split,
         )
+
+    def ambient_term(self) -> float:
+        """The frame's ambient term: estimated from the frame's lights and the sky
+        (``app.ambient``, once per scene, set of lights and sky) with
+        ``render.ambient_estimate``, else ``render.ambient``; a
+        photon map in use brings the bounced light itself, so it keeps ``render.ambient``."""
+        r = self.settings.render
+        scene = self.gpu_scene
+        if not r.ambient_estimate or scene is None:
+            return float(r.ambient)
+        if self.photons.photons is not None and deferred(self.settings):
+            return float(r.ambient)
+        lights = self.frame_lights()
+        sky = scene_sky(self.settings.sky, scene.scene) if self.settings.sky.enabled else None
+        key = (list(lights), sky_key(sky) if sky is not None else None)
+        cached = self._ambient
+        if cached is None or cached[0] is not scene or cached[1] != key:
+            if self._ambient_probe is None or self._ambient_probe[0] is not scene:
+                own = scene.scene.ray_caster
+                caster = own if isinstance(own, RayCaster) else None
+                self._ambient_probe = (scene, AmbientProbe(scene.scene, caster))
+            sh = self.daylight.update_sky(sky).sh if sky is not None else None
+            value = self._ambient_probe[1].estimate(lights, sh).ambient
+            self._ambient = cached = (scene, key, value)
+        return cached[2]
 
     def step_exposure(self) -> None:
         """This frame's exposure: the fixed EV, or the last metering adapted by frame_dt."""
