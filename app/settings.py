@@ -480,6 +480,25 @@ class RenderSettings:
         choices=("edge", "bilinear"),
         choice_labels={"edge": "Edge-preserving (FSR 1 style)", "bilinear": "Plain (bilinear)"},
     )
+    refine: bool = _opt(
+        False,
+        "While you stand still and your gaze rests, the picture keeps improving frame by "
+        "frame until it reaches full quality: smooth edges, the finest textures and full "
+        "shading, sharpest where you look first. Any movement starts it again.",
+        label="Refine the picture while still",
+        paper="Progressive refinement (accumulated jittered samples, as in Enscape)",
+    )
+    refine_samples: int = _opt(
+        64,
+        "How many slightly shifted pictures are averaged where you look before the picture "
+        "counts as refined; the rest of the view takes half as long again. More gives "
+        "smoother edges and takes longer.",
+        label="Refinement steps",
+        unit="pictures",
+        lo=2,
+        hi=1024,
+        step=2.0,
+    )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(
         1.0,

@@ -17,6 +17,7 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
+from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import Governor, apply_overrides
 from app.paths import FIXED_DT
@@ -54,6 +55,7 @@ from render.passes import (
     PresentPass,
 )
 from render.photons import PhotonPass
+from render.refine import RefinePass
 from render.shaders import ShaderLibrary
 from render.shadows import ShadowPass
 from render.sky import DaylightPass, SkyPass, sky_key
@@ -79,6 +81,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     ForwardPass,
     SkyPass,
     BlendPass,
+    RefinePass,
     ExposurePass,
     PresentPass,
     ABSplitPass,
@@ -114,6 +117,7 @@ class Renderer:
     cps_mask = _Pass[CpsMaskPass]()
     emissive = _Pass[EmissivePass]()
     forward = _Pass[ForwardPass]()
+    refine = _Pass[RefinePass]()
     exposure_meter = _Pass[ExposurePass]()
     sky = _Pass[SkyPass]()
     present = _Pass[PresentPass]()
@@ -167,6 +171,7 @@ class Renderer:
         self.exposure.reset()  # another room: meter it afresh
         if "exposure_meter" in self._by_name:
             self.exposure_meter.forget()
+        self._forget_refinement()
         if scene is not None:
             self.gpu_scene = GpuScene(
                 self.ctx, scene, self.settings.render.anisotropy, stream_in=stream_in
@@ -202,7 +207,28 @@ class Renderer:
 
     def set_photons(self, photons: PhotonMap | None) -> None:
         """The photon map for the current scene (traced by the host), or None: no indirect."""
+        if photons is not self.photons.photons:  # hosts hand the same map every frame
+            self._forget_refinement()
         self.photons.set_photons(photons)
+
+    def _forget_refinement(self) -> None:
+        refine = self._by_name.get("refine")
+        if isinstance(refine, RefinePass):
+            refine.forget()
+
+    def frame_settings(self, frame: FrameInput) -> Settings:
+        """The settings a frame is drawn with: the renderer's, or while the frame is refining
+        (``frame.refining``, render.refine on) the same with full-rate shading (no CPS or
+        masks) and the finest textures (TCR off), as ``app.quality.full_quality`` has them
+        (the photon map stays the current one)."""
+        s = self.settings
+        if not (frame.refining and s.render.refine):
+            return s
+        return dataclasses.replace(
+            s,
+            cps=dataclasses.replace(s.cps, mode="none"),
+            tcr=dataclasses.replace(s.tcr, enabled=False, tint=False),
+        )
 
     def _warm_up(self) -> None:
         """Compile every shader variant now, so the first frames do not stall."""
@@ -239,10 +265,13 @@ class Renderer:
         out: moderngl.Framebuffer,
         origin: tuple[int, int] = (0, 0),
         split: SplitFrame | None = None,
+        settings: Settings | None = None,
     ) -> FrameContext:
-        """The frame's inputs as every pass sees them."""
-        r = self.settings.render
-        s = self.settings.cps
+        """The frame's inputs as every pass sees them (``settings``: the frame's, see
+        :meth:`frame_settings`; default the renderer's)."""
+        settings = settings or self.settings
+        r = settings.render
+        s = settings.cps
         caps: list[tuple[float, float, float]] = (
             frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
         )
@@ -256,12 +285,15 @@ class Renderer:
             out_origin=origin,
             gaze=frame.gaze,
             gaze_fixed=frame.gaze_fixed,
-            levels=frame.levels if self.settings.tcr.enabled else None,
-            tcr_mode=self.settings.tcr.mode,
-            tint=self.settings.tcr.tint,
+            levels=frame.levels if settings.tcr.enabled else None,
+            tcr_mode=settings.tcr.mode,
+            tint=settings.tcr.tint,
             cps=CpsFrame(s, caps, self.frames, list(frame.edge_hits or [])),
             edge_hits=frame.edge_hits,
             split=split,
+            refining=bool(frame.refining and r.refine),
+            refine_sample=int(frame.sample),
+            refine_target=int(frame.refine_target),
         )
 
     def step_exposure(self) -> None:
@@ -286,11 +318,12 @@ class Renderer:
         metered), for the session's TCR light term (``Session.exposure_state``)."""
         return self.exposure.base_ev, self.exposure.scene_ev
 
-    def configure(self, ctx: FrameContext) -> list[RenderPass]:
+    def configure(self, ctx: FrameContext, settings: Settings | None = None) -> list[RenderPass]:
         """Ask every pass whether it runs (its own rule) and check the enabled list's reads
         (once per configuration); the enabled passes, in order."""
+        settings = settings or self.settings
         for p in self.passes:
-            p.enabled = bool(p.configure(self.settings, ctx.scene, ctx))
+            p.enabled = bool(p.configure(settings, ctx.scene, ctx))
         enabled = [p for p in self.passes if p.enabled]
         key = tuple((p.name, p.reads, p.writes) for p in enabled)
         if key not in self._checked:
@@ -355,10 +388,26 @@ class Renderer:
         self.cps.ensure(self.targets)
         self.step_exposure()
         self._sync_lights()
-        ctx = self.frame_context(frame, out, origin, split)
-        ctx.scene.lod_bias = self.settings.render.lod_bias  # cheap: the governor moves it
+        if split is not None and frame.refining:  # the presenter shows the technique as is
+            dx, dy = frame.jitter
+            eyes = [
+                dataclasses.replace(
+                    e, projection=jittered(e.projection, (-dx, -dy), e.width, e.height)
+                )
+                for e in frame.eyes
+            ]
+            frame = dataclasses.replace(frame, eyes=eyes, refining=False, jitter=(0.0, 0.0))
+        settings = self.frame_settings(frame)
+        ctx = self.frame_context(frame, out, origin, split, settings)
+        ctx.scene.lod_bias = settings.render.lod_bias  # cheap: the governor moves it
         ctx.view_size = view
-        enabled = self.configure(ctx)
+        refine = self._by_name.get("refine")
+        # Refined: the mean is final, so the passes before the accumulation are not drawn.
+        holding = isinstance(refine, RefinePass) and refine.holding(ctx)
+        enabled = self.configure(ctx, settings)
+        if holding:
+            at = enabled.index(refine) if refine in enabled else 0
+            enabled = enabled[at:]
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
             scene.streamer.update(
@@ -372,8 +421,10 @@ class Renderer:
         res = self.resources
         res.begin_frame(self.targets)
         for p in self.passes:
-            if not p.enabled:
+            if not p.enabled or p not in enabled:
                 p.last_ms = 0.0
+        if holding:  # what the skipped passes made is still in the targets
+            res.wrote(tuple(name for p in self.passes if p.enabled for name in p.writes))
         for p in enabled:
             try:
                 p.run(ctx)

@@ -20,7 +20,7 @@ from PyQt6.QtGui import QKeyEvent, QMouseEvent, QSurfaceFormat
 from PyQt6.QtOpenGLWidgets import QOpenGLWidget
 
 from app.frame_log import FrameLog
-from app.overlay_text import text_image
+from app.overlay_text import text_image, with_status
 from app.scene import Scene
 from app.session import Session
 from app.stats import FrameTimer, overlay_lines
@@ -77,6 +77,8 @@ class StereoView(QOpenGLWidget):
         self._last_tick = time.perf_counter()
         self._drag_from: QPointF | None = None
         self._text_at = 0.0
+        self.status_line: str | None = None  # the refinement line last drawn in the overlay
+        self.overlay_text: list[str] = []  # the overlay's lines as last drawn
         self.playing = False
         self._play_frame = 0
         self.recording: list = []
@@ -122,12 +124,16 @@ class StereoView(QOpenGLWidget):
         frame = self.session.frame_input(layout.eye_width, layout.eye_height)
         self._drop_stale_heat_map(frame)
         now = time.perf_counter()
-        if now - self._text_at > 0.25:  # redraw the statistics text at 4 Hz, not every frame
+        status = self.session.refinement.status_line()  # "refining 63%" while still
+        # Redraw the statistics text at 4 Hz, not every frame (and when refinement starts/ends).
+        if now - self._text_at > 0.25 or (status is None) != (self.status_line is None):
             self._text_at = now
+            self.status_line = status
             lines = overlay_lines(
                 self.timer.fps, self.renderer.pass_ms(), self.session.settings, frame.gaze_fixed
             )
-            self.renderer.overlay.set_text_image(text_image(lines))
+            self.overlay_text = with_status(lines, status)
+            self.renderer.overlay.set_text_image(text_image(self.overlay_text))
         # Automatic exposure adapts by the last frame's wall time (the headless hosts' fixed step).
         self.renderer.frame_dt = min(0.25, self.timer.times[-1]) if self.timer.times else 1 / 60
         self.renderer.display_hz = self.display_hz()  # render.target_fps "auto"

@@ -1,0 +1,238 @@
+"""Progressive refinement while still (issue 15): rest detection, samples and progress, the
+jitter, the accumulated picture (smoother edges, converging to full quality), refinement off
+as before, the built-in stop path and the overlay line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.camera import StereoCamera
+from app.paths import CameraPath, PathKey
+from app.refine import halton_jitter, jitter_index, needed
+from app.scene import Material, PointLight, Scene, Viewpoint
+from app.scenes import resolve_path
+from app.session import Session
+from app.settings import Settings
+from render.offscreen import OffscreenHost
+from tests.test_render import quad
+
+W, H = 128, 64  # the side-by-side view: 2 x 64 x 64
+TARGET = 8
+
+
+def edge_scene() -> Scene:
+    """A bright, emissive square on black, its edges off the pixel grid: aliased in one frame."""
+    square = quad("square", (0.113, 1.637, -2.0), 0.83)
+    mats = [Material("lamp", (0.0, 0.0, 0.0, 1.0), emissive=(0.6, 0.6, 0.6), roughness=1.0)]
+    return Scene(
+        "edges",
+        [square],
+        mats,
+        [],
+        [PointLight((0, 1.6, 0), (1, 1, 1), 0.0, 1.0)],
+        Viewpoint((0, 1.6, 0)),
+    ).sanitized()
+
+
+def still_then_move(still_s: float, move_s: float = 0.5) -> CameraPath:
+    keys = [
+        PathKey(0.0, (0.0, 1.6, 0.0)),
+        PathKey(still_s, (0.0, 1.6, 0.0)),
+        PathKey(still_s + move_s, (0.5, 1.6, 0.0)),
+    ]
+    return CameraPath(keys, "edges")
+
+
+def settings(refine: bool = True) -> Settings:
+    s = Settings()
+    s.render.refine = refine
+    s.render.refine_samples = TARGET
+    s.render.overlay = False
+    return s
+
+
+def session(s: Settings, path: CameraPath) -> Session:
+    out = Session(s)
+    out.set_scene(edge_scene(), path)
+    return out
+
+
+@pytest.fixture(scope="module")
+def host():
+    h = OffscreenHost(W, H, settings())
+    h.set_scene(edge_scene())
+    h.set_text_image(None)
+    yield h
+    assert not h.renderer.errors
+    h.close()
+
+
+def test_still_samples_grow_and_a_move_resets() -> None:
+    path = still_then_move(1.0)
+    ses = session(settings(), path)
+    seen = []
+    for n in range(path.frame_count()):
+        ses.apply_path_frame(n)
+        frame = ses.frame_input(64, 64)
+        seen.append((frame.refining, frame.sample, ses.refinement.progress))
+        if n == 20:
+            assert ses.refinement.status_line() == "refined"
+        if n == 5:
+            assert ses.refinement.status_line() == f"refining {int(100 * 5 / needed(TARGET))}%"
+    # Frame 0 is drawn as usual, then samples 0, 1, 2 ... up to needed(TARGET) (then held).
+    assert [s for r, s, _p in seen[1 : 1 + needed(TARGET) + 2]] == [
+        *range(needed(TARGET) + 1),
+        needed(TARGET),
+    ]
+    assert not seen[0][0] and all(r for r, _s, _p in seen[1:60])
+    progress = [p for _r, _s, p in seen[:30]]
+    assert progress == sorted(progress) and progress[-1] == 1.0
+    # Walking from 1 s on: no refinement, no overlay line.
+    assert not any(r for r, _s, _p in seen[62:])
+    assert ses.refinement.status_line() is None and ses.refinement.progress == 0.0
+
+
+def test_gaze_moving_resets_and_tcr_levels_are_finest_while_refining() -> None:
+    s = settings()
+    s.tcr.enabled = True
+    ses = session(s, still_then_move(1.0))
+    for n in range(6):
+        ses.apply_path_frame(n)
+        frame = ses.frame_input(64, 64)
+    assert frame.refining and frame.levels is None  # finest texture levels
+    ses.gaze.set_cursor(0.9, 0.5)
+    ses.tick(1 / 60)
+    assert ses.frame_input(64, 64).refining is False
+    assert ses.refinement.status_line() is None
+
+
+def test_jitter_is_low_discrepancy_and_moves_the_picture() -> None:
+    assert halton_jitter(0) == (0.0, 0.0)
+    points = np.array([halton_jitter(jitter_index(s, 64)) for s in range(64)])
+    assert len({tuple(p) for p in points}) == 64
+    assert np.all(np.abs(points) <= 0.5)
+    # Each quarter of the pixel gets a quarter of the samples, for the fovea (all samples)
+    # and the periphery (its share of the first 64) alike.
+    for subset in (points, points[::2]):
+        quarters = np.histogram2d(subset[:, 0], subset[:, 1], bins=2, range=[[-0.5, 0.5]] * 2)
+        assert quarters[0].min() >= len(subset) // 4 - 1
+    cam = StereoCamera()
+    plain = cam.eyes(64, 64)[0]
+    shifted = cam.eyes(64, 64, (0.25, -0.5))[0]
+    p = np.array([0.3, 1.2, -3.0, 1.0])
+
+    def pixel(eye):
+        c = eye.view_projection @ p
+        return (c[:2] / c[3] + 1) / 2 * 64
+
+    np.testing.assert_allclose(pixel(shifted) - pixel(plain), (0.25, -0.5), atol=1e-9)
+    np.testing.assert_allclose(shifted.projection[2:], plain.projection[2:])  # depth as before
+
+
+def frames_at_rest(host: OffscreenHost, ses: Session, count: int) -> list[np.ndarray]:
+    out = []
+    for n in range(count):
+        ses.apply_path_frame(n)
+        out.append(host.draw(ses.frame_input(*host.eye_size)).astype(np.float64))
+    return out
+
+
+def intermediate(img: np.ndarray) -> int:
+    """Edge pixels partly covered: pixels of a grey level that neither the background nor the
+    square (nor the gaze marker) has in one frame."""
+    grey = np.round(img.mean(axis=2))
+    levels, counts = np.unique(grey, return_counts=True)
+    common = levels[counts > 150]  # background, square, marker
+    return int(np.count_nonzero(~np.isin(grey, common)))
+
+
+def test_accumulated_edges_are_smoother_and_converge(host: OffscreenHost) -> None:
+    ses = session(host.settings, still_then_move(3.0))
+    frames = frames_at_rest(host, ses, needed(TARGET) + 3)
+    single = frames[0]
+    # One frame: the square's edges are hard (pixels all black or white)
+    assert intermediate(single) < 20
+    refined = frames[-1]
+    assert intermediate(refined) > 4 * max(1, intermediate(single)) and intermediate(refined) > 60
+    assert host.renderer.refine.enabled
+    # Converging: against a mean of many more jittered samples the error falls.
+    reference = reference_mean(host, ses, 64)
+    errors = [np.abs(f - reference).mean() for f in (frames[1], frames[-1])]
+    assert errors[1] < 0.5 * errors[0]
+
+
+def reference_mean(host: OffscreenHost, ses: Session, samples: int) -> np.ndarray:
+    """The refined picture of the same view at ``samples`` samples (a fresh accumulation)."""
+    ses.settings.render.refine_samples = samples
+    try:
+        ses.refinement.reset()
+        ses.tick(1 / 60)
+        for _ in range(needed(samples) + 2):
+            img = host.draw(ses.frame_input(*host.eye_size))
+    finally:
+        ses.settings.render.refine_samples = TARGET
+    return img.astype(np.float64)
+
+
+def test_refine_off_gives_the_frames_of_before() -> None:
+    off = settings(refine=False)
+    with OffscreenHost(W, H, off) as h:
+        h.set_scene(edge_scene())
+        h.set_text_image(None)
+        ses = session(off, still_then_move(1.0))
+        cam = StereoCamera(off.stereo)
+        for n in range(12):
+            ses.apply_path_frame(n)
+            frame = ses.frame_input(*h.eye_size)
+            assert not frame.refining and frame.jitter == (0.0, 0.0)
+            img = h.draw(frame)
+            # The frame of before: the eyes without any shift, nothing accumulated.
+            w = ses.walker
+            cam.set_pose(w.position, w.yaw_deg, w.pitch_deg)
+            frame.eyes = cam.eyes(*h.eye_size)
+            assert np.array_equal(img, h.draw(frame))
+        assert not h.renderer.refine.enabled
+        assert not h.renderer.errors
+
+
+def test_first_frame_at_rest_is_the_frame_of_before(host: OffscreenHost) -> None:
+    ses = session(host.settings, still_then_move(1.0))
+    ses.apply_path_frame(3)
+    first = host.draw(ses.frame_input(*host.eye_size))
+    off = settings(refine=False)
+    ses_off = session(off, still_then_move(1.0))
+    ses_off.apply_path_frame(3)
+    assert np.array_equal(first, host.draw(ses_off.frame_input(*host.eye_size)))
+
+
+def test_showroom_stop_walks_then_stands() -> None:
+    path = resolve_path("showroom_stop")
+    assert path.duration == pytest.approx(7.0)
+    walk = [path.at_frame(n).position for n in range(0, 121, 30)]
+    assert all(np.linalg.norm(np.subtract(a, b)) > 0.1 for a, b in zip(walk, walk[1:]))
+    rest = {tuple(path.at_frame(n).position) for n in range(120, path.frame_count())}
+    assert len(rest) == 1
+
+
+def test_window_overlay_shows_refining_and_drops_it_when_moving(qtbot) -> None:
+    from PyQt6.QtCore import Qt
+
+    from tests.test_render import checker_scene
+    from ui.main_window import MainWindow
+
+    s = Settings()
+    s.render.refine = True  # off by default (see app/settings.py)
+    s.render.refine_samples = 400  # long enough to see it refining
+    w = MainWindow(s, checker_scene())
+    qtbot.addWidget(w)
+    w.view.setFixedSize(240, 135)
+    w.show()
+    qtbot.waitExposed(w)
+    qtbot.waitUntil(lambda: (w.view.status_line or "").startswith("refining"), timeout=20000)
+    assert any(line.startswith("refining") for line in w.view.overlay_text)
+    qtbot.keyPress(w.view, Qt.Key.Key_W)
+    qtbot.waitUntil(lambda: w.view.status_line is None, timeout=20000)
+    assert not any(line.startswith("refin") for line in w.view.overlay_text)
+    qtbot.keyRelease(w.view, Qt.Key.Key_W)
+    w.close()
