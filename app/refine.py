@@ -23,6 +23,31 @@ from dataclasses import dataclass
 # Gaze at rest: the gaze point moves less than this (degrees of view per second); below it is
 # fixational jitter, above it the eye is looking somewhere else.
 GAZE_REST_DEG_S = 2.0
+# The view at rest: the pose the mean was started at may drift by at most this share of a
+# pixel (turning, or stepping as seen at POSE_REST_DISTANCE_M) before the mean starts again.
+# TCR's "still" speed lets a slow turn through (0.05 m/s is 1.5 degrees a second), and the
+# mean is not reprojected: without this, a slow turn would smear the accumulated picture.
+POSE_REST_PX = 0.1
+POSE_REST_DISTANCE_M = 1.0
+
+
+def refine_on(mode: str, display_hz: float | None) -> bool:
+    """``render.refine``: "on", "off", or "auto": on when a display refresh rate is known (the
+    window), off without one (headless renders, benches and tests stay frame for frame)."""
+    text = str(mode).strip().lower()
+    if text == "auto":
+        return bool(display_hz) and math.isfinite(float(display_hz or 0.0))
+    return text == "on"
+
+
+def pose_shift_deg(
+    a: tuple[float, float, float, float, float], b: tuple[float, float, float, float, float]
+) -> float:
+    """How far the picture moves between poses (x, y, z, yaw, pitch) in degrees of view: the
+    turn plus the step as seen from POSE_REST_DISTANCE_M."""
+    turned = abs((b[3] - a[3] + 180.0) % 360.0 - 180.0) + abs(b[4] - a[4])
+    moved = math.dist(a[:3], b[:3])
+    return turned + math.degrees(moved / POSE_REST_DISTANCE_M)
 
 
 def radical_inverse(index: int, base: int) -> float:
@@ -94,11 +119,13 @@ class Refinement:
         self.target = 64
         self.enabled = True
         self._last_gaze: tuple[float, float] | None = None
+        self._anchor: tuple[float, float, float, float, float] | None = None  # the mean's pose
 
     def reset(self) -> None:
         self.still = False
         self.frames = 0
         self._last_gaze = None
+        self._anchor = None
 
     def observe(
         self,
@@ -107,11 +134,16 @@ class Refinement:
         move_off: float,
         gaze: tuple[float, float],
         view_deg: tuple[float, float],
+        pose: tuple[float, float, float, float, float] | None = None,
+        deg_per_px: float = 0.0,
     ) -> bool:
         """One tick: the viewpoint rests when its speed (``Session.viewpoint_speed``, TCR's
         motion term) is at most TCR's "still" threshold ``move_off``; the gaze rests when its
         point moves less than GAZE_REST_DEG_S (``view_deg``: the eye's field of view, degrees
-        across and up). A tick of zero length (a click) changes nothing but the gaze."""
+        across and up). A tick of zero length (a click) changes nothing but the gaze.
+        ``pose`` (x, y, z, yaw, pitch): the refinement also starts again when the view has
+        drifted from the pose its mean began at by more than POSE_REST_PX pixels of
+        ``deg_per_px`` degrees (the mean is not reprojected)."""
         u, v = (float(gaze[0]), float(gaze[1]))
         gaze_still = True
         if self._last_gaze is not None and dt > 0:
@@ -123,6 +155,17 @@ class Refinement:
         self._last_gaze = (u, v)
         speed = float(viewpoint_speed)
         still = gaze_still and math.isfinite(speed) and abs(speed) <= max(0.0, move_off)
+        if pose is not None:
+            x, y, z, yaw, pitch = (float(c) for c in pose)
+            p = (x, y, z, yaw, pitch)
+            if not all(math.isfinite(c) for c in p):
+                still = False
+            elif still and self._anchor is not None and self.frames > 0:
+                drift = pose_shift_deg(self._anchor, p)
+                if drift > POSE_REST_PX * max(0.0, float(deg_per_px)):
+                    self.frames = 0  # the mean was of another view: start again here
+            if self.frames == 0:
+                self._anchor = p
         if not still:
             self.frames = 0
         self.still = still

@@ -18,7 +18,7 @@ from app.gaze import GazeModel
 from app.navigation import Walker
 from app.paths import FIXED_DT, CameraPath, PathKey
 from app.raycast import RayCaster
-from app.refine import Refinement, RefineStep
+from app.refine import Refinement, RefineStep, refine_on
 from app.scene import Scene
 from app.scenes import default_path
 from app.settings import Settings
@@ -54,6 +54,9 @@ class Session:
         self.refinement = Refinement()
         self.last_step = RefineStep()
         self._settings_key = ""
+        # The display's refresh rate (the window sets it; None headless): render.refine "auto"
+        # refines only with one.
+        self.display_hz: float | None = None
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
         """Switch scenes; everything indexed by the old scene's meshes is forgotten first."""
@@ -133,12 +136,17 @@ class Session:
         m.update(dt, self.viewpoint_speed, self.gaze.state.fixed)
         g = self.gaze.state
         w, h = self.eye_size
+        wk = self.walker
+        x, y, z = (float(v) for v in wk.position)
+        fov = self.settings.stereo.fov_deg
         self.refinement.observe(
             dt,
             self.viewpoint_speed,
             t.move_off,
             (g.u, g.v),
-            (self.camera.horizontal_fov_deg(w, h), self.settings.stereo.fov_deg),
+            (self.camera.horizontal_fov_deg(w, h), fov),
+            (x, y, z, float(wk.yaw_deg), float(wk.pitch_deg)),
+            float(fov) / max(1, h),
         )
         self.gazed = self.gazed_index()
         self.edge = self.edge_caps()
@@ -218,7 +226,7 @@ class Session:
         refined are those of the first frame at rest; any change starts it again."""
         r = self.settings.render
         ref = self.refinement
-        ref.enabled = bool(r.refine)
+        ref.enabled = refine_on(r.refine, self.display_hz)
         ref.target = max(1, int(r.refine_samples))
         key = repr(self.settings)
         if key != self._settings_key:

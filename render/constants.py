@@ -62,7 +62,6 @@ IMAGE_UNITS = {
     "lists": 2,  # light culling: per-tile lists
     "winner": 3,  # photon reuse scatter: the winners (read-write)
     "reuse_winner": 4,  # photon gather: the right eye's winners (read only)
-    "accum": 5,  # refinement: the running mean per pixel (read-write)
 }
 
 # Texture units, keyed by the sampler uniform's name without "u_"; every sampler bind goes

@@ -218,11 +218,11 @@ class Renderer:
 
     def frame_settings(self, frame: FrameInput) -> Settings:
         """The settings a frame is drawn with: the renderer's, or while the frame is refining
-        (``frame.refining``, render.refine on) the same with full-rate shading (no CPS or
-        masks) and the finest textures (TCR off), as ``app.quality.full_quality`` has them
-        (the photon map stays the current one)."""
+        (``frame.refining``: the session's choice; render.refine not "off") the same with
+        full-rate shading (no CPS or masks) and the finest textures (TCR off), as
+        ``app.quality.full_quality`` has them (the photon map stays the current one)."""
         s = self.settings
-        if not (frame.refining and s.render.refine):
+        if not (frame.refining and str(s.render.refine) != "off"):
             return s
         return dataclasses.replace(
             s,
@@ -291,7 +291,7 @@ class Renderer:
             cps=CpsFrame(s, caps, self.frames, list(frame.edge_hits or [])),
             edge_hits=frame.edge_hits,
             split=split,
-            refining=bool(frame.refining and r.refine),
+            refining=bool(frame.refining and str(r.refine) != "off"),
             refine_sample=int(frame.sample),
             refine_target=int(frame.refine_target),
         )

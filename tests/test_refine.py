@@ -9,11 +9,11 @@ import pytest
 
 from app.camera import StereoCamera
 from app.paths import CameraPath, PathKey
-from app.refine import halton_jitter, jitter_index, needed
+from app.refine import halton_jitter, jitter_index, needed, refine_on
 from app.scene import Material, PointLight, Scene, Viewpoint
 from app.scenes import resolve_path
 from app.session import Session
-from app.settings import Settings
+from app.settings import Settings, SettingsError
 from render.offscreen import OffscreenHost
 from tests.test_render import quad
 
@@ -46,7 +46,7 @@ def still_then_move(still_s: float, move_s: float = 0.5) -> CameraPath:
 
 def settings(refine: bool = True) -> Settings:
     s = Settings()
-    s.render.refine = refine
+    s.render.refine = "on" if refine else "off"
     s.render.refine_samples = TARGET
     s.render.overlay = False
     return s
@@ -131,6 +131,7 @@ def test_jitter_is_low_discrepancy_and_moves_the_picture() -> None:
 
 
 def frames_at_rest(host: OffscreenHost, ses: Session, count: int) -> list[np.ndarray]:
+    host.renderer.refine.forget()  # the module's host: nothing of an earlier test's mean
     out = []
     for n in range(count):
         ses.apply_path_frame(n)
@@ -166,12 +167,14 @@ def reference_mean(host: OffscreenHost, ses: Session, samples: int) -> np.ndarra
     """The refined picture of the same view at ``samples`` samples (a fresh accumulation)."""
     ses.settings.render.refine_samples = samples
     try:
+        host.renderer.refine.forget()
         ses.refinement.reset()
         ses.tick(1 / 60)
         for _ in range(needed(samples) + 2):
             img = host.draw(ses.frame_input(*host.eye_size))
     finally:
         ses.settings.render.refine_samples = TARGET
+        host.renderer.refine.forget()  # the next run starts its own mean
     return img.astype(np.float64)
 
 
@@ -222,7 +225,7 @@ def test_window_overlay_shows_refining_and_drops_it_when_moving(qtbot) -> None:
     from ui.main_window import MainWindow
 
     s = Settings()
-    s.render.refine = True  # off by default (see app/settings.py)
+    s.render.refine = "on"  # the tests' window has no display rate: "auto" would not refine
     s.render.refine_samples = 400  # long enough to see it refining
     w = MainWindow(s, checker_scene())
     qtbot.addWidget(w)
@@ -236,3 +239,61 @@ def test_window_overlay_shows_refining_and_drops_it_when_moving(qtbot) -> None:
     assert not any(line.startswith("refin") for line in w.view.overlay_text)
     qtbot.keyRelease(w.view, Qt.Key.Key_W)
     w.close()
+
+
+def test_auto_refines_in_the_window_only_and_old_switch_values_load() -> None:
+    assert refine_on("auto", 60.0) and not refine_on("auto", None)
+    assert refine_on("on", None) and not refine_on("off", 60.0)
+    s = settings()
+    s.set("render.refine", "auto")
+    ses = session(s, still_then_move(1.0))  # headless: no display rate
+    for n in range(6):
+        ses.apply_path_frame(n)
+        assert not ses.frame_input(64, 64).refining
+    assert ses.refinement.status_line() is None
+    ses.display_hz = 60.0  # the window sets it
+    ses.apply_path_frame(6)
+    ses.frame_input(64, 64)
+    ses.apply_path_frame(7)
+    assert ses.frame_input(64, 64).refining
+    for text, mode in (("true", "on"), ("no", "off"), ("Auto", "auto")):
+        s.set("render.refine", text)
+        assert s.render.refine == mode
+    with pytest.raises(SettingsError, match="render.refine"):
+        s.set("render.refine", "sometimes")
+
+
+TURN_DEG = 1.6  # over 2 s: 0.8 degrees a second, "still" by TCR's speed (below 0.05 m/s)
+
+
+def slow_turn() -> CameraPath:
+    p = (0.0, 1.6, 0.0)
+    keys = [PathKey(0.0, p), PathKey(1.0, p), PathKey(3.0, p, TURN_DEG), PathKey(5.0, p, TURN_DEG)]
+    return CameraPath(keys, "edges")
+
+
+def test_a_slow_turn_starts_the_mean_again_and_the_picture_follows(host: OffscreenHost) -> None:
+    path = slow_turn()
+    ses = session(host.settings, path)
+    plain = session(settings(refine=False), path)
+    host.renderer.refine.forget()
+    turn_end = round(3.0 / (1 / 60))
+    shown = {}
+    for n in range(turn_end + needed(TARGET) + 4):
+        ses.apply_path_frame(n)
+        img = host.draw(ses.frame_input(*host.eye_size)).astype(np.float64)
+        assert ses.viewpoint_speed <= host.settings.tcr.move_off  # never "moving"
+        if n in (55, turn_end, turn_end + needed(TARGET) + 3):
+            plain.apply_path_frame(n)
+            shown[n] = (img, host.draw(plain.frame_input(*host.eye_size)).astype(np.float64))
+    before, _ = shown[55]
+    end_img, end_plain = shown[turn_end]
+    moved = np.abs(shown[55][1] - end_plain).mean()
+    assert moved > 0.5  # the turn moves the square's edges by about a pixel
+    # At the end of the turn the picture shows where the viewer looks now, not the mean held
+    # from where the turn began (the mean is not reprojected: it starts again).
+    assert np.abs(end_img - end_plain).mean() < 0.3 * moved
+    # Standing at the new pose, it refines to the mean of the new view.
+    final, _ = shown[turn_end + needed(TARGET) + 3]
+    fresh = reference_mean(host, ses, TARGET)
+    assert np.abs(final - fresh).mean() < 0.2 * np.abs(before - fresh).mean()

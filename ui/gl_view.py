@@ -121,6 +121,8 @@ class StereoView(QOpenGLWidget):
         fbo = self.ctx.detect_framebuffer(self.defaultFramebufferObject())
         fbo.viewport = (0, 0, layout.view_width, layout.view_height)
         fbo.clear(0.0, 0.0, 0.0, 1.0)  # the letterbox bars
+        hz = self.display_hz()  # render.target_fps and render.refine "auto"
+        self.session.display_hz = hz
         frame = self.session.frame_input(layout.eye_width, layout.eye_height)
         self._drop_stale_heat_map(frame)
         now = time.perf_counter()
@@ -136,7 +138,7 @@ class StereoView(QOpenGLWidget):
             self.renderer.overlay.set_text_image(text_image(self.overlay_text))
         # Automatic exposure adapts by the last frame's wall time (the headless hosts' fixed step).
         self.renderer.frame_dt = min(0.25, self.timer.times[-1]) if self.timer.times else 1 / 60
-        self.renderer.display_hz = self.display_hz()  # render.target_fps "auto"
+        self.renderer.display_hz = hz
         if self.presenter is not None and self.presenter.active:
             self.presenter.render(self.renderer, frame, fbo, layout.gl_origin)
         else:

@@ -361,6 +361,20 @@ def refine_after_still(
     at 0.5, 1, 2 and 5 s of path time after the stop against the converged full-quality
     frame (the same pose, accumulated over REFINE_REFERENCE_SAMPLES jittered samples at full
     quality with the current photon map), and the wall-clock seconds those frames took."""
+    r = settings.render
+    target, mode = r.refine_samples, r.refine
+    # Headless, "auto" does not refine: this path measures the refinement, so it is on here
+    # (an explicit "off" stays off: the picture without refinement, for comparison).
+    r.refine = "off" if mode == "off" else "on"
+    try:
+        return _refine_after_still(host, session, settings, ppd, stop_s)
+    finally:
+        r.refine_samples, r.refine = target, mode
+
+
+def _refine_after_still(
+    host, session: Session, settings: Settings, ppd: float, stop_s: float
+) -> dict:
     from app.refine import needed
 
     assert session.path is not None
@@ -383,15 +397,12 @@ def refine_after_still(
             wall[marks[n]] = elapsed
     r = settings.render
     target, was_on = r.refine_samples, r.refine
-    r.refine, r.refine_samples = True, REFINE_REFERENCE_SAMPLES
-    try:
-        session.refinement.reset()
-        session.tick(0.0)
-        for _ in range(needed(REFINE_REFERENCE_SAMPLES) + 2):
-            host.render_only(session.frame_input(*host.eye_size))
-        reference = host.read_pixels()
-    finally:
-        r.refine_samples, r.refine = target, was_on
+    r.refine, r.refine_samples = "on", REFINE_REFERENCE_SAMPLES
+    session.refinement.reset()
+    session.tick(0.0)
+    for _ in range(needed(REFINE_REFERENCE_SAMPLES) + 2):
+        host.render_only(session.frame_input(*host.eye_size))
+    reference = host.read_pixels()
     return {
         "flip_after_still_s": {
             f"{m:g}": metrics.flip(reference, img, ppd) for m, img in shown.items()
@@ -399,7 +410,7 @@ def refine_after_still(
         "wall_s_after_still_s": {f"{m:g}": s for m, s in wall.items()},
         "reference_samples": REFINE_REFERENCE_SAMPLES,
         "refine_samples": target,
-        "refine_on": bool(was_on),
+        "refine_on": was_on == "on",
     }
 
 
