@@ -498,7 +498,7 @@ class RenderSettings:
         "While you stand still and your gaze rests, the picture keeps improving frame by "
         "frame until it reaches full quality: smooth edges, the finest textures and full "
         "shading, sharpest where you look first. Any movement starts it again. Automatic "
-        "refines in the window and not in pictures and measurements made without one.",
+        "refines in the window only: pictures and measurements made without it stay as drawn.",
         label="Refine the picture while still",
         paper="Progressive refinement (accumulated jittered samples, as in Enscape)",
         choices=("auto", "on", "off"),

@@ -148,7 +148,8 @@ class StereoView(QOpenGLWidget):
         self.frame_log.record(now, self.renderer.pass_ms())
 
     def display_hz(self) -> float | None:
-        """The refresh rate of the screen showing the view, for ``render.target_fps = auto``.
+        """The refresh rate of the screen showing the view, for ``render.target_fps = auto``
+        (and ``render.refine = auto``: refinement only with a known rate).
         ``VRPREVIEW_DISPLAY_HZ`` overrides it (0: no display, fixed settings: the tests)."""
         forced = os.environ.get("VRPREVIEW_DISPLAY_HZ")
         if forced is not None:
