@@ -297,3 +297,22 @@ def test_a_slow_turn_starts_the_mean_again_and_the_picture_follows(host: Offscre
     final, _ = shown[turn_end + needed(TARGET) + 3]
     fresh = reference_mean(host, ses, TARGET)
     assert np.abs(final - fresh).mean() < 0.2 * np.abs(before - fresh).mean()
+
+
+def test_window_with_a_display_rate_refines_by_default(qtbot, monkeypatch) -> None:
+    from tests.test_render import checker_scene
+    from ui.main_window import MainWindow
+
+    monkeypatch.setenv("VRPREVIEW_DISPLAY_HZ", "60")  # as on a real screen (the governor too)
+    s = Settings()
+    assert s.render.refine == "auto"
+    s.render.refine_samples = 400
+    w = MainWindow(s, checker_scene())
+    qtbot.addWidget(w)
+    w.view.setFixedSize(240, 135)
+    w.show()
+    qtbot.waitExposed(w)
+    qtbot.waitUntil(lambda: (w.view.status_line or "").startswith("refining"), timeout=20000)
+    assert w.session.display_hz == 60.0 and w.session.last_step.refining
+    assert not w.view.renderer.errors
+    w.close()
