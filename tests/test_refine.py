@@ -4,6 +4,8 @@ as before, the built-in stop path and the overlay line."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -316,3 +318,38 @@ def test_window_with_a_display_rate_refines_by_default(qtbot, monkeypatch) -> No
     assert w.session.display_hz == 60.0 and w.session.last_step.refining
     assert not w.view.renderer.errors
     w.close()
+
+
+def test_refining_under_cps_converges_towards_the_full_quality_frame() -> None:
+    from app import scenes
+    from app.quality import full_quality
+
+    s = settings()
+    s.cps.mode = "cps"  # coarse shading away from the gaze while walking
+    room = scenes.BUILTIN["showroom"]()
+    stand = (0.75, 1.6, 1.05)
+    path = CameraPath([PathKey(0.0, stand, 5.0), PathKey(2.0, stand, 5.0)], "showroom")
+    ses = Session(s)
+    ses.set_scene(room, path)
+    frames = []
+    with OffscreenHost(160, 90, s) as h:
+        h.set_scene(room)
+        h.set_text_image(None)
+        for n in range(needed(TARGET) + 3):
+            ses.apply_path_frame(n)
+            frame = ses.frame_input(*h.eye_size)
+            frames.append(h.draw(frame).astype(np.float64))
+        assert not h.renderer.errors
+    # The full-quality frame of the same pose, drawn once without jitter.
+    cam = StereoCamera(s.stereo)
+    w = ses.walker
+    cam.set_pose(w.position, w.yaw_deg, w.pitch_deg)
+    plain = dataclasses.replace(frame, refining=False, jitter=(0.0, 0.0), eyes=cam.eyes(80, 90))
+    with OffscreenHost(160, 90, full_quality(s, converged_photons=False)) as ref:
+        ref.set_scene(room)
+        ref.set_text_image(None)
+        full = ref.draw(plain).astype(np.float64)
+    first, refined = frames[0], frames[-1]
+    err_first = np.abs(first - full).mean()
+    err_refined = np.abs(refined - full).mean()
+    assert err_refined < 0.5 * err_first
