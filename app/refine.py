@@ -127,6 +127,12 @@ class Refinement:
         self._last_gaze = None
         self._anchor = None
 
+    def restart(self) -> None:
+        """The renderer dropped the mean (the picture changed under it, e.g. finer textures
+        arrived): the next frame is sample 0 again, still at rest."""
+        if self.frames > 1:
+            self.frames = 1
+
     def observe(
         self,
         dt: float,

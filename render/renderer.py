@@ -157,6 +157,9 @@ class Renderer:
         # headless hosts, where "auto" means fixed settings).
         self.governor = Governor()
         self.display_hz: float | None = None
+        # The last frame dropped the refinement's mean (finer textures arrived while refining):
+        # the host restarts its session's samples (``Refinement.restart``).
+        self.refine_restarted = False
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -405,9 +408,6 @@ class Renderer:
         # Refined: the mean is final, so the passes before the accumulation are not drawn.
         holding = isinstance(refine, RefinePass) and refine.holding(ctx)
         enabled = self.configure(ctx, settings)
-        if holding:
-            at = enabled.index(refine) if refine in enabled else 0
-            enabled = enabled[at:]
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
             scene.streamer.update(
@@ -418,6 +418,16 @@ class Renderer:
         else:
             ctx.levels = None
             scene.streamer.update([0] * len(scene.streamer.resident))
+        # Finer textures arrived (the window streams a large scene's textures in): the mean so
+        # far was of blurrier pictures, so it starts again (the host tells its session, see
+        # ``refine_restarted``).
+        self.refine_restarted = bool(ctx.refining and scene.streamer.uploaded_bytes > 0)
+        if self.refine_restarted:
+            self._forget_refinement()
+            holding = False
+        if holding:
+            at = enabled.index(refine) if refine in enabled else 0
+            enabled = enabled[at:]
         res = self.resources
         res.begin_frame(self.targets)
         for p in self.passes:

@@ -12,7 +12,7 @@ import pytest
 from app.camera import StereoCamera
 from app.paths import CameraPath, PathKey
 from app.refine import halton_jitter, jitter_index, needed, refine_on
-from app.scene import Material, PointLight, Scene, Viewpoint
+from app.scene import Material, PointLight, Scene, Texture, Viewpoint
 from app.scenes import resolve_path
 from app.session import Session
 from app.settings import Settings, SettingsError
@@ -353,3 +353,56 @@ def test_refining_under_cps_converges_towards_the_full_quality_frame() -> None:
     err_first = np.abs(first - full).mean()
     err_refined = np.abs(refined - full).mean()
     assert err_refined < 0.5 * err_first
+
+
+def streamed_scene() -> Scene:
+    """Eight quads filling the view, each with its own texture of four colours (seeded)."""
+    rng = np.random.default_rng(15)
+    meshes, mats, texs = [], [], []
+    for i in range(8):
+        x, y = -0.75 + 0.5 * (i % 4), 1.35 + 0.5 * (i // 4)
+        meshes.append(quad(f"q{i}", (x, y, -1.2), 0.25, material=i))
+        mats.append(Material(f"m{i}", (1, 1, 1, 1), i, roughness=1.0))
+        colours = rng.integers(0, 256, (2, 2, 4), dtype=np.uint8)
+        colours[..., 3] = 255
+        tex = np.repeat(np.repeat(colours, 128, axis=0), 128, axis=1)  # four flat quarters
+        texs.append(Texture(f"t{i}", tex, repeat=False))
+    light = PointLight((0, 1.6, 0), (1, 1, 1), 30.0, 20.0)
+    return Scene("streamed", meshes, mats, texs, [light], Viewpoint((0, 1.6, 0))).sanitized()
+
+
+def refined_picture(stream_in: bool) -> tuple[np.ndarray, int]:
+    """The refined picture of the streamed scene standing still (``stream_in``: the textures
+    arrive one a frame while it refines, as in the window); and the frames that uploaded."""
+    s = settings()
+    scene = streamed_scene()
+    path = CameraPath([PathKey(0.0, (0, 1.6, 0)), PathKey(2.0, (0, 1.6, 0))], "streamed")
+    ses = Session(s)
+    ses.set_scene(scene, path)
+    uploads = 0
+    with OffscreenHost(W, H, s) as h:
+        h.set_scene(scene, stream_in=stream_in)
+        h.set_text_image(None)
+        assert h.renderer.gpu_scene is not None
+        h.renderer.gpu_scene.streamer.budget_bytes = 1  # one texture a frame
+        for n in range(40):
+            ses.apply_path_frame(n)
+            img = h.draw(ses.frame_input(*h.eye_size))
+            uploads += h.renderer.gpu_scene.streamer.uploaded_bytes > 0
+            if h.renderer.refine_restarted:  # as the window does
+                ses.refinement.restart()
+        assert ses.refinement.status_line() == "refined" and not h.renderer.errors
+    return img.astype(np.float64), uploads
+
+
+def test_textures_arriving_while_refining_start_the_mean_again(monkeypatch) -> None:
+    import render.texture_stream as stream
+
+    monkeypatch.setattr(stream, "STREAM_IN_ABOVE_BYTES", 0)
+    monkeypatch.setattr(stream, "STREAM_IN_START_PX", 1)  # first one flat colour a texture
+    resident, uploads = refined_picture(stream_in=False)
+    assert uploads == 0
+    streamed, uploads = refined_picture(stream_in=True)
+    assert uploads >= 6  # the textures kept arriving while it refined
+    # The refined picture holds no sample of the blurry textures: as if all were there.
+    assert np.abs(streamed - resident).mean() < 0.25

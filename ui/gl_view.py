@@ -143,6 +143,8 @@ class StereoView(QOpenGLWidget):
             self.presenter.render(self.renderer, frame, fbo, layout.gl_origin)
         else:
             self.renderer.render(frame, fbo, layout.gl_origin)
+        if self.renderer.refine_restarted:  # finer textures arrived: refine them from sample 0
+            self.session.refinement.restart()
         self.session.exposure_state = self.renderer.exposure_state()  # TCR's l reads it
         self.timer.tick(now)
         self.frame_log.record(now, self.renderer.pass_ms())
