@@ -160,6 +160,7 @@ class Renderer:
         # The last frame dropped the refinement's mean (finer textures arrived while refining):
         # the host restarts its session's samples (``Refinement.restart``).
         self.refine_restarted = False
+        self._refine_dropped = False
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -218,6 +219,7 @@ class Renderer:
         refine = self._by_name.get("refine")
         if isinstance(refine, RefinePass):
             refine.forget()
+        self._refine_dropped = True  # the next refining frame tells the host
 
     def frame_settings(self, frame: FrameInput) -> Settings:
         """The settings a frame is drawn with: the renderer's, or while the frame is refining
@@ -418,12 +420,14 @@ class Renderer:
         else:
             ctx.levels = None
             scene.streamer.update([0] * len(scene.streamer.resident))
-        # Finer textures arrived (the window streams a large scene's textures in): the mean so
-        # far was of blurrier pictures, so it starts again (the host tells its session, see
-        # ``refine_restarted``).
-        self.refine_restarted = bool(ctx.refining and scene.streamer.uploaded_bytes > 0)
-        if self.refine_restarted:
+        # Finer textures arrived (the window streams a large scene's textures in), or a new
+        # photon map: the mean so far was of another picture, so it starts again (the host
+        # tells its session, see ``refine_restarted``).
+        if ctx.refining and scene.streamer.uploaded_bytes > 0:
             self._forget_refinement()
+        self.refine_restarted = bool(ctx.refining and self._refine_dropped)
+        self._refine_dropped = False  # not refining: the session starts from sample 0 anyway
+        if self.refine_restarted:
             holding = False
         if holding:
             at = enabled.index(refine) if refine in enabled else 0
