@@ -145,7 +145,9 @@ class MainWindow(QMainWindow):
         # Long texts (a gazed object's name) are cut, never widen the window.
         self.eval_bar.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.statusBar().addPermanentWidget(self.eval_bar, 1)
-        self.frame_dock = frame_graph_dock(self, self.view.frame_log, self.settings)  # F3
+        self.frame_dock = frame_graph_dock(
+            self, self.view.frame_log, self.settings, self.view.display_hz
+        )  # F3
         self.log_panel = LogPanel(self)
         self.log_panel.attach()
         self.warnings_link = WarningsLink(self.log_panel.open_panel)
