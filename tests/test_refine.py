@@ -406,3 +406,16 @@ def test_textures_arriving_while_refining_start_the_mean_again(monkeypatch) -> N
     assert uploads >= 6  # the textures kept arriving while it refined
     # The refined picture holds no sample of the blurry textures: as if all were there.
     assert np.abs(streamed - resident).mean() < 0.25
+
+
+def test_bench_showroom_stop_refines_with_the_default_setting() -> None:
+    from app.lab.bench import bench
+
+    s = Settings()  # render.refine "auto": off headless, the path turns it on
+    result = bench("showroom", (320, 180), 3, s, warmup=1, path=resolve_path("showroom_stop"))
+    assert s.render.refine == "auto"  # given back as it was
+    assert result.refine is not None and result.refine["refine_on"]
+    flip = result.refine["flip_after_still_s"]
+    assert list(flip) == ["0.5", "1", "2", "5"]
+    assert flip["0.5"] > flip["1"] > flip["2"] and flip["2"] <= 0.02  # the target
+    assert all(result.refine["wall_s_after_still_s"][k] > 0 for k in flip)
