@@ -13,6 +13,12 @@ after ``needed(target) = target + target // 2`` frames. The jitter sequence is a
 sequence shifted by half a pixel (sample 0 is unshifted), ordered so that both the fovea's
 samples (Halton points 0..n-1) and the periphery's (two runs of consecutive points) stay
 evenly spread over the pixel.
+
+``render.refine``: "on", "off" or "auto" (:func:`refine_on`: on when the host knows a
+display refresh rate, i.e. in the window; off headless, so renders, benches and tests draw
+the frames of before). Motion resets the mean; so does a drift of the view by more than
+POSE_REST_PX of a pixel since the mean began (the mean is not reprojected), and the renderer
+dropping it (finer textures or a new photon map: :meth:`Refinement.restart`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """Progressive refinement while still (issue 15): rest detection, samples and progress, the
-jitter, the accumulated picture (smoother edges, converging to full quality), refinement off
-as before, the built-in stop path and the overlay line."""
+jitter, the accumulated picture (smoother edges, converging to full quality, also under CPS),
+refinement off as before, "auto" (in the window only), a slow turn and arriving textures
+starting the mean again, the built-in stop path and its bench figures, the overlay line."""
 
 from __future__ import annotations
 
