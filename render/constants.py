@@ -45,6 +45,11 @@ LEVEL_TINTS = (
     (1.0, 0.1, 0.1),
 )
 
+# Merged static meshes (render.gpu_scene.GpuGroup): the per-object table's SSBO binding (one
+# vec4 per mesh: the TCR tint rgb and its texture level minus the resident base), read by
+# geometry.vert.glsl under the OBJECT_TABLE variant. Bindings 0-5 are the photon gather's.
+OBJECT_TABLE_BINDING = 6
+
 # Photon gather: record / start textures are 1 << PM_TEX_SHIFT texels wide; work groups of
 # PM_GROUP invocations (Algorithm 1 relies on it); heaps of at most PM_MAX_K entries; the
 # reuse winner's "no left pixel lands here".
@@ -132,6 +137,7 @@ SHADER_DEFINES: dict[str, object] = {
     "PM_MAX_K": PM_MAX_K,
     "PM_NO_WINNER": f"0x{PM_NO_WINNER:X}u",
     "MAX_SHADOW_TILES": MAX_SHADOW_TILES,
+    "OBJECT_TABLE_BINDING": OBJECT_TABLE_BINDING,
     "TEXTURE_UNIT_SHADOW_ATLAS": TEXTURE_UNITS["shadow_atlas"],
     **{f"IMAGE_UNIT_{k.upper()}": v for k, v in IMAGE_UNITS.items()},
 }

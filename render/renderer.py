@@ -140,6 +140,9 @@ class Renderer:
         self.ids = ObjectIdPass(ctx, self.shaders, self.resources)  # on request only
         self._checked: set[tuple] = set()  # configurations whose pass list was checked
         self.gpu_scene: GpuScene | None = None
+        # Static meshes merged per material (render.gpu_scene.GpuGroup); False: one draw per
+        # mesh, as before (tests compare the two, debugging). Read by set_scene.
+        self.merge_meshes = True
         self._sun: Light | None = None
         self._sun_key: tuple | None = None
         self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
@@ -178,7 +181,11 @@ class Renderer:
         self._forget_refinement()
         if scene is not None:
             self.gpu_scene = GpuScene(
-                self.ctx, scene, self.settings.render.anisotropy, stream_in=stream_in
+                self.ctx,
+                scene,
+                self.settings.render.anisotropy,
+                stream_in=stream_in,
+                merge=self.merge_meshes,
             )
             self._warm_up()
 
@@ -242,12 +249,16 @@ class Renderer:
         if tcr.enabled:
             mode = "TCR_PAPER" if tcr.mode == "paper" else "TCR_CLAMP"
             modes = [{mode: True, "TCR_TINT": tcr.tint}]
+        merged = [True] if self.gpu_scene is not None and self.gpu_scene.groups else []
         for fragment in ("gbuffer.frag.glsl", "forward.frag.glsl"):
             for textured in (False, True):
                 for extra in modes:
-                    self.shaders.program(
-                        "geometry.vert.glsl", fragment, {"HAS_TEXTURE": textured, **extra}
-                    )
+                    for table in (False, *merged):
+                        self.shaders.program(
+                            "geometry.vert.glsl",
+                            fragment,
+                            {"HAS_TEXTURE": textured, "OBJECT_TABLE": table, **extra},
+                        )
         self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
         self.shaders.compute("lighting.comp.glsl")
         for fragment in ("lighting.frag.glsl", "overlay.frag.glsl", "exposure_meter.frag.glsl"):
@@ -536,6 +547,15 @@ class Renderer:
         """Triangles the last frame's geometry pass drew per eye (after frustum culling)."""
         drawn = (self.gpu_scene or self._empty).drawn
         return [drawn.get(i, 0) for i in range(2)]
+
+    def draw_calls(self) -> list[int]:
+        """Draw calls the last frame's geometry pass (G-buffer or forward) made per eye."""
+        calls = (self.gpu_scene or self._empty).calls
+        return [calls.get(i, 0) for i in range(2)]
+
+    def frame_draw_calls(self) -> int:
+        """Draw calls for meshes so far, every pass (shadow maps, AO, ids included)."""
+        return (self.gpu_scene or self._empty).draw_calls
 
     def texture_resident_bytes(self) -> int:
         return self.gpu_scene.texture_bytes if self.gpu_scene is not None else 0

@@ -223,11 +223,14 @@ def bench(
     compared: list[tuple[int, FrameErrors]] = []  # (state, figures) per compared frame
     photon_frames: list[dict] = []
     drawn: list[list[int]] = []  # triangles drawn per eye, per frame
+    calls: list[list[int]] = []  # the geometry pass's draw calls per eye, per frame
+    frame_calls: list[int] = []  # draw calls for meshes per frame, every pass
     try:
         host.set_text_image(None)
         for i in range(-warmup, total):
             session.apply_path_frame(max(i, 0) * stride % session.path.frame_count())
             frame = session.frame_input(*host.eye_size)
+            calls_before = host.renderer.frame_draw_calls()
             t0 = time.perf_counter()
             host.render_only(frame)
             dt = (time.perf_counter() - t0) * 1000.0
@@ -242,6 +245,8 @@ def bench(
                     photon_frames.append(host.renderer.photon_stats())
             resident.append(host.renderer.texture_resident_bytes())
             drawn.append(host.renderer.triangles_drawn())
+            calls.append(host.renderer.draw_calls())
+            frame_calls.append(host.renderer.frame_draw_calls() - calls_before)
             gazed = session.gazed
             distance = (
                 float(session.tcr.distances[gazed])
@@ -286,6 +291,8 @@ def bench(
         errors = host.renderer.errors
         budget = _frame_budget(frame_ms, settings, host.renderer.governor)
         shadows = host.renderer.shadows.stats()  # shadow_memory_bytes: the maps' GPU memory
+        gpu_scene = host.renderer.gpu_scene
+        merged_groups = len(gpu_scene.groups) if gpu_scene is not None else 0
         device = host.ctx.info.get("GL_RENDERER", "")
         trace_ms = host.photon_cache.trace_ms
     finally:
@@ -330,6 +337,10 @@ def bench(
         shadows=shadows,
         geometry={
             "triangles_drawn": [int(np.median(col)) for col in zip(*drawn)] if drawn else [],
+            "draw_calls": [int(np.median(col)) for col in zip(*calls)] if calls else [],
+            "draw_calls_frame": int(np.median(frame_calls)) if frame_calls else 0,
+            "meshes": len(scene.meshes),
+            "merged_groups": merged_groups,
         },
         frame_budget=budget,
         refine=refine,
