@@ -47,6 +47,9 @@ def full_quality(settings: Settings, converged_photons: bool = True) -> Settings
     ref.photons.stereo_reuse = False
     ref.photons.show_reuse = False
     ref.render.target_fps = "0"  # the reference holds no frame rate: every knob at full
+    # One frame's reference depends on that frame alone: no running mean of its own (a
+    # refining frame's jitter is drawn once, at full quality).
+    ref.render.refine = "off"
     ref.render.scale = 1.0
     ref.tcr.level_bias = 0
     ref.render.lod_bias = 0.0  # the meshes as loaded

@@ -18,6 +18,7 @@ import moderngl
 import numpy as np
 
 from app.ambient import AmbientProbe
+from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import Governor, apply_overrides
 from app.paths import FIXED_DT
@@ -57,6 +58,7 @@ from render.passes import (
     deferred,
 )
 from render.photons import PhotonPass
+from render.refine import RefinePass
 from render.shaders import ShaderLibrary
 from render.shadows import ShadowPass
 from render.sky import DaylightPass, SkyPass, sky_key
@@ -82,6 +84,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     ForwardPass,
     SkyPass,
     BlendPass,
+    RefinePass,
     ExposurePass,
     PresentPass,
     ABSplitPass,
@@ -117,6 +120,7 @@ class Renderer:
     cps_mask = _Pass[CpsMaskPass]()
     emissive = _Pass[EmissivePass]()
     forward = _Pass[ForwardPass]()
+    refine = _Pass[RefinePass]()
     exposure_meter = _Pass[ExposurePass]()
     sky = _Pass[SkyPass]()
     present = _Pass[PresentPass]()
@@ -162,6 +166,10 @@ class Renderer:
         # headless hosts, where "auto" means fixed settings).
         self.governor = Governor()
         self.display_hz: float | None = None
+        # The last frame dropped the refinement's mean (finer textures arrived while refining):
+        # the host restarts its session's samples (``Refinement.restart``).
+        self.refine_restarted = False
+        self._refine_dropped = False
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -176,6 +184,7 @@ class Renderer:
         self.exposure.reset()  # another room: meter it afresh
         if "exposure_meter" in self._by_name:
             self.exposure_meter.forget()
+        self._forget_refinement()
         if scene is not None:
             self.gpu_scene = GpuScene(
                 self.ctx,
@@ -215,7 +224,29 @@ class Renderer:
 
     def set_photons(self, photons: PhotonMap | None) -> None:
         """The photon map for the current scene (traced by the host), or None: no indirect."""
+        if photons is not self.photons.photons:  # hosts hand the same map every frame
+            self._forget_refinement()
         self.photons.set_photons(photons)
+
+    def _forget_refinement(self) -> None:
+        refine = self._by_name.get("refine")
+        if isinstance(refine, RefinePass):
+            refine.forget()
+        self._refine_dropped = True  # the next refining frame tells the host
+
+    def frame_settings(self, frame: FrameInput) -> Settings:
+        """The settings a frame is drawn with: the renderer's, or while the frame is refining
+        (``frame.refining``: the session's choice; render.refine not "off") the same with
+        full-rate shading (no CPS or masks) and the finest textures (TCR off), as
+        ``app.quality.full_quality`` has them (the photon map stays the current one)."""
+        s = self.settings
+        if not (frame.refining and str(s.render.refine) != "off"):
+            return s
+        return dataclasses.replace(
+            s,
+            cps=dataclasses.replace(s.cps, mode="none"),
+            tcr=dataclasses.replace(s.tcr, enabled=False, tint=False),
+        )
 
     def _warm_up(self) -> None:
         """Compile every shader variant now, so the first frames do not stall."""
@@ -256,10 +287,13 @@ class Renderer:
         out: moderngl.Framebuffer,
         origin: tuple[int, int] = (0, 0),
         split: SplitFrame | None = None,
+        settings: Settings | None = None,
     ) -> FrameContext:
-        """The frame's inputs as every pass sees them."""
-        r = self.settings.render
-        s = self.settings.cps
+        """The frame's inputs as every pass sees them (``settings``: the frame's, see
+        :meth:`frame_settings`; default the renderer's)."""
+        settings = settings or self.settings
+        r = settings.render
+        s = settings.cps
         caps: list[tuple[float, float, float]] = (
             frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
         )
@@ -273,12 +307,15 @@ class Renderer:
             out_origin=origin,
             gaze=frame.gaze,
             gaze_fixed=frame.gaze_fixed,
-            levels=frame.levels if self.settings.tcr.enabled else None,
-            tcr_mode=self.settings.tcr.mode,
-            tint=self.settings.tcr.tint,
+            levels=frame.levels if settings.tcr.enabled else None,
+            tcr_mode=settings.tcr.mode,
+            tint=settings.tcr.tint,
             cps=CpsFrame(s, caps, self.frames, list(frame.edge_hits or [])),
             edge_hits=frame.edge_hits,
             split=split,
+            refining=bool(frame.refining and str(r.refine) != "off"),
+            refine_sample=int(frame.sample),
+            refine_target=int(frame.refine_target),
         )
 
     def ambient_term(self) -> float:
@@ -328,11 +365,12 @@ class Renderer:
         metered), for the session's TCR light term (``Session.exposure_state``)."""
         return self.exposure.base_ev, self.exposure.scene_ev
 
-    def configure(self, ctx: FrameContext) -> list[RenderPass]:
+    def configure(self, ctx: FrameContext, settings: Settings | None = None) -> list[RenderPass]:
         """Ask every pass whether it runs (its own rule) and check the enabled list's reads
         (once per configuration); the enabled passes, in order."""
+        settings = settings or self.settings
         for p in self.passes:
-            p.enabled = bool(p.configure(self.settings, ctx.scene, ctx))
+            p.enabled = bool(p.configure(settings, ctx.scene, ctx))
         enabled = [p for p in self.passes if p.enabled]
         key = tuple((p.name, p.reads, p.writes) for p in enabled)
         if key not in self._checked:
@@ -397,10 +435,23 @@ class Renderer:
         self.cps.ensure(self.targets)
         self.step_exposure()
         self._sync_lights()
-        ctx = self.frame_context(frame, out, origin, split)
-        ctx.scene.lod_bias = self.settings.render.lod_bias  # cheap: the governor moves it
+        if split is not None and frame.refining:  # the presenter shows the technique as is
+            dx, dy = frame.jitter
+            eyes = [
+                dataclasses.replace(
+                    e, projection=jittered(e.projection, (-dx, -dy), e.width, e.height)
+                )
+                for e in frame.eyes
+            ]
+            frame = dataclasses.replace(frame, eyes=eyes, refining=False, jitter=(0.0, 0.0))
+        settings = self.frame_settings(frame)
+        ctx = self.frame_context(frame, out, origin, split, settings)
+        ctx.scene.lod_bias = settings.render.lod_bias  # cheap: the governor moves it
         ctx.view_size = view
-        enabled = self.configure(ctx)
+        refine = self._by_name.get("refine")
+        # Refined: the mean is final, so the passes before the accumulation are not drawn.
+        holding = isinstance(refine, RefinePass) and refine.holding(ctx)
+        enabled = self.configure(ctx, settings)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
             scene.streamer.update(
@@ -411,11 +462,25 @@ class Renderer:
         else:
             ctx.levels = None
             scene.streamer.update([0] * len(scene.streamer.resident))
+        # Finer textures arrived (the window streams a large scene's textures in), or a new
+        # photon map: the mean so far was of another picture, so it starts again (the host
+        # tells its session, see ``refine_restarted``).
+        if ctx.refining and scene.streamer.uploaded_bytes > 0:
+            self._forget_refinement()
+        self.refine_restarted = bool(ctx.refining and self._refine_dropped)
+        self._refine_dropped = False  # not refining: the session starts from sample 0 anyway
+        if self.refine_restarted:
+            holding = False
+        if holding:
+            at = enabled.index(refine) if refine in enabled else 0
+            enabled = enabled[at:]
         res = self.resources
         res.begin_frame(self.targets)
         for p in self.passes:
-            if not p.enabled:
+            if not p.enabled or p not in enabled:
                 p.last_ms = 0.0
+        if holding:  # what the skipped passes made is still in the targets
+            res.wrote(tuple(name for p in self.passes if p.enabled for name in p.writes))
         for p in enabled:
             try:
                 p.run(ctx)

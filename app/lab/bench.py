@@ -31,7 +31,7 @@ from app.lab.results import (
 )
 from app.loaders import LoadOptions
 from app.overlay_text import text_image
-from app.paths import FIXED_DT, CameraPath
+from app.paths import FIXED_DT, SHOWROOM_STOP, SHOWROOM_STOP_AT_S, CameraPath
 from app.progress import Progress as LoadProgress
 from app.quality import FrameErrors
 from app.session import Session
@@ -283,6 +283,11 @@ def bench(
             per_frame.append(record)
             if progress:
                 progress(i + 1, total)
+        refine = (
+            refine_after_still(host, session, settings, ppd)
+            if getattr(session.path, "name", "") == SHOWROOM_STOP
+            else None
+        )
         errors = host.renderer.errors
         budget = _frame_budget(frame_ms, settings, host.renderer.governor)
         shadows = host.renderer.shadows.stats()  # shadow_memory_bytes: the maps' GPU memory
@@ -338,6 +343,7 @@ def bench(
             "merged_groups": merged_groups,
         },
         frame_budget=budget,
+        refine=refine,
     )
 
 
@@ -353,6 +359,70 @@ def _frame_budget(ms: list[float], settings: Settings, governor: Governor) -> Fr
     if fps <= 0:
         return None
     return FrameBudget.of(ms, fps, governor.summary())
+
+
+REFINE_MARKS_S = (0.5, 1.0, 2.0, 5.0)
+REFINE_REFERENCE_SAMPLES = 256
+
+
+def refine_after_still(
+    host, session: Session, settings: Settings, ppd: float, stop_s: float = SHOWROOM_STOP_AT_S
+) -> dict:
+    """The refinement after the path stops (``showroom_stop``): FLIP of the displayed frame
+    at 0.5, 1, 2 and 5 s of path time after the stop against the converged full-quality
+    frame (the same pose, accumulated over REFINE_REFERENCE_SAMPLES jittered samples at full
+    quality with the current photon map), and the wall-clock seconds those frames took."""
+    r = settings.render
+    target, mode = r.refine_samples, r.refine
+    # Headless, "auto" does not refine: this path measures the refinement, so it is on here
+    # (an explicit "off" stays off: the picture without refinement, for comparison).
+    r.refine = "off" if mode == "off" else "on"
+    try:
+        return _refine_after_still(host, session, settings, ppd, stop_s)
+    finally:
+        r.refine_samples, r.refine = target, mode
+
+
+def _refine_after_still(
+    host, session: Session, settings: Settings, ppd: float, stop_s: float
+) -> dict:
+    from app.refine import needed
+
+    assert session.path is not None
+    stop = round(stop_s / FIXED_DT)
+    marks = {round((stop_s + m) / FIXED_DT): m for m in REFINE_MARKS_S}
+    last = min(max(marks), session.path.frame_count() - 1)
+    session.apply_path_frame(max(0, stop - 1))  # walking into the stop (not timed)
+    host.render_only(session.frame_input(*host.eye_size))
+    shown: dict[float, np.ndarray] = {}
+    wall: dict[float, float] = {}
+    elapsed = 0.0
+    for n in range(stop, last + 1):
+        session.apply_path_frame(n)
+        frame = session.frame_input(*host.eye_size)
+        t0 = time.perf_counter()
+        host.render_only(frame)
+        elapsed += time.perf_counter() - t0
+        if n in marks:
+            shown[marks[n]] = host.read_pixels()
+            wall[marks[n]] = elapsed
+    r = settings.render
+    target, was_on = r.refine_samples, r.refine
+    r.refine, r.refine_samples = "on", REFINE_REFERENCE_SAMPLES
+    session.refinement.reset()
+    session.tick(0.0)
+    for _ in range(needed(REFINE_REFERENCE_SAMPLES) + 2):
+        host.render_only(session.frame_input(*host.eye_size))
+    reference = host.read_pixels()
+    return {
+        "flip_after_still_s": {
+            f"{m:g}": metrics.flip(reference, img, ppd) for m, img in shown.items()
+        },
+        "wall_s_after_still_s": {f"{m:g}": s for m, s in wall.items()},
+        "reference_samples": REFINE_REFERENCE_SAMPLES,
+        "refine_samples": target,
+        "refine_on": was_on == "on",
+    }
 
 
 def _error_summary(compared: list[tuple[int, FrameErrors]], ppd: float) -> ErrorVsFullQuality:

@@ -49,7 +49,7 @@ def _common(
     p.add_argument(
         "--path",
         help="camera+gaze path (JSON file, or a built-in: "
-        "showroom_walkthrough, tcr_cube_distance, tcr_cube_orbit, "
+        "showroom_walkthrough, showroom_stop, tcr_cube_distance, tcr_cube_orbit, "
         "tcr_cube_gaze) instead of the scene's default",
     )
 

@@ -177,6 +177,9 @@ class BenchResult:
     # material groups the static meshes were merged into, render.gpu_scene.GpuGroup).
     geometry: dict | None = None
     frame_budget: FrameBudget | None = None  # against render.target_fps (None: fixed)
+    refine: dict | None = (
+        None  # showroom_stop: refinement after the stop (bench.refine_after_still)
+    )
 
     @property
     def fps_median(self) -> float:
@@ -210,6 +213,8 @@ class BenchResult:
         }
         if self.error_vs_full_quality is not None:
             out["error_vs_full_quality"] = self.error_vs_full_quality.to_dict()
+        if self.refine is not None:
+            out["refine"] = self.refine
         if self.command is not None:
             out["command"] = self.command
         if self.shadows is not None:
