@@ -34,6 +34,8 @@ GAZE_REST_DEG_S = 2.0
 # TCR's "still" speed lets a slow turn through (0.05 m/s is 1.5 degrees a second), and the
 # mean is not reprojected: without this, a slow turn would smear the accumulated picture.
 POSE_REST_PX = 0.1
+# ... and a view that moves by POSE_REST_PX in less than this many seconds is moving.
+POSE_REST_S = 0.25
 POSE_REST_DISTANCE_M = 1.0
 
 
@@ -126,12 +128,14 @@ class Refinement:
         self.enabled = True
         self._last_gaze: tuple[float, float] | None = None
         self._anchor: tuple[float, float, float, float, float] | None = None  # the mean's pose
+        self._last_pose: tuple[float, float, float, float, float] | None = None
 
     def reset(self) -> None:
         self.still = False
         self.frames = 0
         self._last_gaze = None
         self._anchor = None
+        self._last_pose = None
 
     def restart(self) -> None:
         """The renderer dropped the mean (the picture changed under it, e.g. finer textures
@@ -172,10 +176,23 @@ class Refinement:
             p = (x, y, z, yaw, pitch)
             if not all(math.isfinite(c) for c in p):
                 still = False
-            elif still and self._anchor is not None and self.frames > 0:
-                drift = pose_shift_deg(self._anchor, p)
-                if drift > POSE_REST_PX * max(0.0, float(deg_per_px)):
-                    self.frames = 0  # the mean was of another view: start again here
+            else:
+                rest = POSE_REST_PX * max(0.0, float(deg_per_px))
+                last = self._last_pose
+                # A view that moves by more than that in POSE_REST_S is turning or walking,
+                # however slowly: it is not at rest (else a slow turn would start the mean
+                # again every few frames, the governor switching between full quality and its
+                # walking settings each time).
+                if (
+                    last is not None
+                    and dt > 0
+                    and pose_shift_deg(last, p) / dt > rest / POSE_REST_S
+                ):
+                    still = False
+                elif still and self._anchor is not None and self.frames > 0:
+                    if pose_shift_deg(self._anchor, p) > rest:
+                        self.frames = 0  # the mean was of another view: start again here
+            self._last_pose = p
             if self.frames == 0:
                 self._anchor = p
         if not still:

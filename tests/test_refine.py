@@ -275,7 +275,7 @@ def slow_turn() -> CameraPath:
     return CameraPath(keys, "edges")
 
 
-def test_a_slow_turn_starts_the_mean_again_and_the_picture_follows(host: OffscreenHost) -> None:
+def test_a_slow_turn_is_motion_and_the_picture_follows(host: OffscreenHost) -> None:
     path = slow_turn()
     ses = session(host.settings, path)
     plain = session(settings(refine=False), path)
@@ -285,7 +285,9 @@ def test_a_slow_turn_starts_the_mean_again_and_the_picture_follows(host: Offscre
     for n in range(turn_end + needed(TARGET) + 4):
         ses.apply_path_frame(n)
         img = host.draw(ses.frame_input(*host.eye_size)).astype(np.float64)
-        assert ses.viewpoint_speed <= host.settings.tcr.move_off  # never "moving"
+        assert ses.viewpoint_speed <= host.settings.tcr.move_off  # never "moving" by speed
+        if 62 <= n <= turn_end:  # but turning: no refining (full quality) frame in between
+            assert not ses.refinement.active, n
         if n in (55, turn_end, turn_end + needed(TARGET) + 3):
             plain.apply_path_frame(n)
             shown[n] = (img, host.draw(plain.frame_input(*host.eye_size)).astype(np.float64))
