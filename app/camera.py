@@ -62,6 +62,18 @@ def frustum(
     return m
 
 
+def jittered(
+    projection: np.ndarray, jitter: tuple[float, float], width: int, height: int
+) -> np.ndarray:
+    """``projection`` with the picture moved by ``jitter`` pixels (x right, y up): a shift of
+    the clip-space x and y by 2 * jitter / size times w, so depth is untouched."""
+    dx, dy = (_finite(v, 0.0) for v in jitter)
+    m = projection.copy()
+    m[0, :] += (2.0 * dx / max(1, width)) * m[3, :]
+    m[1, :] += (2.0 * dy / max(1, height)) * m[3, :]
+    return m
+
+
 @dataclass
 class EyeView:
     """Everything a pass needs to draw one eye."""
@@ -117,8 +129,12 @@ class StereoCamera:
         far = min(max(far, near * 1.001 + 1e-6), 1e7)
         return near, far
 
-    def eyes(self, width: int, height: int) -> list[EyeView]:
-        """Left and right eye for one eye viewport of width x height pixels."""
+    def eyes(
+        self, width: int, height: int, jitter: tuple[float, float] = (0.0, 0.0)
+    ) -> list[EyeView]:
+        """Left and right eye for one eye viewport of width x height pixels; ``jitter``
+        shifts both eyes' pictures by a sub-pixel offset (pixels, x right and y up: the
+        refinement's samples, ``app.refine``)."""
         s = self.settings
         width, height = max(1, int(width)), max(1, int(height))
         near, far = self.clip_planes()
@@ -133,6 +149,8 @@ class StereoCamera:
             eye = self.position + side * half_ipd * right
             shift = -side * half_ipd * near / conv  # frustum moves towards the other eye
             proj = frustum(-half_w + shift, half_w + shift, -top, top, near, far)
+            if jitter != (0.0, 0.0):
+                proj = jittered(proj, jitter, width, height)
             views.append(
                 EyeView(
                     index, eye, look_matrix(eye, right, up, fwd), proj, width, height, near, far

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from app.raycast import RayCaster
-from app.scene import PointLight, Scene
+from app.scene import PointLight, Scene, lamp_falloff
 from app.spawn import EYE_HEIGHT_M, SpawnResult
 
 log = logging.getLogger(__name__)
@@ -30,7 +30,8 @@ def safe_default_lights(
         diag = max(float(np.linalg.norm(hi - lo)), 1.0)
         centre = (lo + hi) / 2.0
         pos = (float(centre[0]), float(min(hi[1], centre[1] + diag / 4.0)), float(centre[2]))
-        light = PointLight(pos, (1.0, 1.0, 1.0), float(diag * diag / 4.0 + 1.0), float(diag))
+        # unit irradiance at half the diagonal under the inverse square
+        light = PointLight(pos, (1.0, 1.0, 1.0), float(diag * diag / 4.0), float(diag))
         return [light], [
             f"could not place the default lights (an unexpected {type(exc).__name__}; "
             "details in the log): added one light above the centre"
@@ -42,9 +43,10 @@ def default_lights(scene: Scene, spawn: SpawnResult, caster: RayCaster) -> list[
 
     Interior: 1-4 lights spread over the floor level the viewer stands on, part way up to the
     ceiling. Object: a key light above and in front and a weaker fill beside the viewer.
-    Intensity is set so a surface at a typical distance receives about unit radiance under the
-    renderer's ``intensity / (d^2 + 1)`` law, and the range is a few times that distance (at
-    least a third of the scene) so the window falloff does not cut it short.
+    Intensity is set so a surface at a typical distance receives about unit irradiance under the
+    renderer's physical falloff (``app.scene.lamp_falloff``: ``intensity / d^2`` times the range
+    window), and the range is a few times that distance (at least a third of the scene) so the
+    window does not cut it short.
     """
     lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
     diag = max(float(np.linalg.norm(hi - lo)), 1e-3)
@@ -64,10 +66,12 @@ def default_lights(scene: Scene, spawn: SpawnResult, caster: RayCaster) -> list[
     for pos, target in zip(positions, targets, strict=True):
         dist, _ = caster.cast_many(np.repeat(pos[None, :], len(dirs), axis=0), dirs)
         hits = dist[np.isfinite(dist)]
-        typical = float(np.median(hits)) if hits.size >= len(dirs) // 4 else diag / 2.0
+        # Few hits (a light outside an object): the object's centre is where its light goes.
+        centre_dist = float(np.linalg.norm(pos - (lo + hi) / 2.0))
+        typical = float(np.median(hits)) if hits.size >= len(dirs) // 4 else centre_dist
         typical = max(typical, 0.1)
         rng = max(3.0 * typical, diag / 3.0)
-        intensity = target * (typical * typical + 1.0) / _window(typical / rng)
+        intensity = target / float(lamp_falloff(typical * typical, rng))
         lights.append(
             PointLight(
                 (float(pos[0]), float(pos[1]), float(pos[2])),
@@ -134,8 +138,3 @@ def _sphere_directions(n: int) -> np.ndarray:
     r = np.sqrt(np.maximum(1.0 - y * y, 0.0))
     phi = i * math.pi * (3.0 - math.sqrt(5.0))
     return np.column_stack([r * np.cos(phi), y, r * np.sin(phi)])
-
-
-def _window(x: float) -> float:
-    """The renderer's range falloff as assumed here: (1 - x^4)^2, clamped."""
-    return float(np.clip(1.0 - x**4, 1e-3, 1.0) ** 2)

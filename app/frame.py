@@ -19,6 +19,13 @@ class FrameInput:
     # points in world space (drawn with the detail visualisation). None: no caps (all 0).
     cps_caps: list[tuple[float, float, float]] | None = None
     edge_hits: list[np.ndarray] | None = None
+    # Progressive refinement while the viewer rests (app.refine): accumulate this frame as
+    # sample ``sample`` of ``refine_target`` (full quality asked for; ``jitter`` is the
+    # sub-pixel shift, pixels, already in the eyes' projections). Not refining: as before.
+    refining: bool = False
+    sample: int = 0
+    refine_target: int = 0
+    jitter: tuple[float, float] = (0.0, 0.0)
 
 
 def parse_size(text: str) -> tuple[int, int]:

@@ -14,11 +14,18 @@ Qt-free: the renderer calls :meth:`Governor.observe` after each frame and applie
 
 from __future__ import annotations
 
+import json
+import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from app.settings import Settings, SettingsError
+
+log = logging.getLogger(__name__)
 
 #: Act when the frame-time average is over the budget; give quality back below this share.
 RESTORE_BELOW = 0.8
@@ -69,6 +76,10 @@ class Knob:
     fovea: bool = False
     cheaper_is_higher: bool = False  # the key's value grows as the step gets cheaper
 
+    def error_of(self, step: dict[str, Any]) -> float:
+        """The quality ``step`` (one of :attr:`steps`) loses against the step before it."""
+        return self.error[self.steps.index(step)]
+
     def usable_steps(self, user: Settings) -> list[dict[str, Any]]:
         """The steps cheaper than what the user set (none where the key does not exist)."""
         try:
@@ -89,12 +100,13 @@ class Knob:
         return out
 
 
-# The error table: FLIP against full quality per step, hand-set priors (not yet fitted): small
-# for the periphery's knobs (CPS blocks, fewer shadow redraws), larger for what the whole
-# frame shows (hard shadow edges, the render scale after FSR 1's quality modes 0.77, 0.67,
-# 0.59, 0.5 per axis, growing with the pixels lost), four times larger for the fovea's knobs.
-# To be replaced by the study's Pareto front per scene (app/lab/study.py) when it is run.
-KNOBS: tuple[Knob, ...] = (
+# The priors of the error table, per step the quality lost against the step before (FLIP-like
+# units): small for the periphery's knobs (CPS blocks, fewer shadow redraws), larger for what
+# the whole frame shows (hard shadow edges, the render scale after FSR 1's quality modes 0.77,
+# 0.67, 0.59, 0.5 per axis, growing with the pixels lost), four times larger for the fovea's
+# knobs. The measured table (ERROR_TABLE, from ``vrpreview study governor``) replaces them
+# where it has a knob's steps.
+PRIOR_KNOBS: tuple[Knob, ...] = (
     Knob(
         "shadow redraws",
         "render.shadow_updates_per_frame",
@@ -145,6 +157,58 @@ KNOBS: tuple[Knob, ...] = (
         fovea=True,
     ),
 )
+
+#: The measured table: ``vrpreview study governor`` writes it (governor_errors.json in its
+#: folder); the one beside this file was measured on the showroom walk at 2x640x720.
+ERROR_TABLE = Path(__file__).with_name("governor_errors.json")
+#: How much more an error in the fovea (where the viewer looks) counts than one elsewhere.
+FOVEA_WEIGHT = 3.0
+#: The least a step may cost (measured steps can come out at 0 on a scene they do not touch).
+MIN_STEP_ERROR = 1e-4
+
+
+def step_weight(figures: dict[str, float]) -> float:
+    """One number for a step's loss: the frame's FLIP plus the fovea's, weighted."""
+    return float(figures.get("flip", 0.0)) + FOVEA_WEIGHT * float(figures.get("fovea_flip", 0.0))
+
+
+def load_error_table(path: Path = ERROR_TABLE) -> dict[str, list[float]]:
+    """Per knob key, each step's measured ``weight`` (its loss counted from full quality or
+    from its base); {} where the file is missing or unreadable (the priors then stand)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        out: dict[str, list[float]] = {}
+        for key, steps in data["knobs"].items():
+            weights = [float(s["weight"]) for s in steps]
+            if weights and all(math.isfinite(w) and w >= 0.0 for w in weights):
+                out[str(key)] = weights
+        return out
+    except FileNotFoundError:
+        return {}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        log.warning("governor error table %s unreadable (%s): the priors are used", path, exc)
+        return {}
+
+
+def measured_knobs(
+    table: dict[str, list[float]], priors: tuple[Knob, ...] = PRIOR_KNOBS
+) -> tuple[Knob, ...]:
+    """The knobs with the table's errors: each step's loss over the worst step before it (the
+    table holds losses from full quality), at least :data:`MIN_STEP_ERROR`."""
+    out = []
+    for knob in priors:
+        weights = table.get(knob.key)
+        if weights is None or len(weights) != len(knob.steps):
+            out.append(knob)
+            continue
+        # Counted from the worst step before it, so the increments add up to the worst loss.
+        before = [0.0, *np.maximum.accumulate(weights)[:-1]]
+        errors = tuple(max(MIN_STEP_ERROR, float(w - b)) for w, b in zip(weights, before))
+        out.append(replace(knob, error=errors))
+    return tuple(out)
+
+
+KNOBS: tuple[Knob, ...] = measured_knobs(load_error_table())
 
 #: What the governor shows while the picture refines (the viewer stands still).
 FULL_QUALITY: dict[str, Any] = {
@@ -214,6 +278,7 @@ class Governor:
     """The walking state: each knob's step (0: the user's value), the learnt cost model."""
 
     position: dict[str, int] = field(default_factory=dict)
+    knobs: tuple[Knob, ...] = KNOBS  # with their errors (measured_knobs of another table)
     base_ms: dict[str, float] = field(default_factory=dict)  # category cost at full quality
     overhead_ms: float | None = None
     ema_ms: float | None = None
@@ -264,9 +329,9 @@ class Governor:
         """Every knob with steps below the user's values (worked out once per frame)."""
         if self._steps is not None and self._steps[0] is user:
             return self._steps[1]
-        knobs = [(k, steps) for k in KNOBS if (steps := k.usable_steps(user))]
+        knobs = [(k, steps) for k in self.knobs if (steps := k.usable_steps(user))]
         values: dict[str, Any] = {}
-        for knob in KNOBS:
+        for knob in self.knobs:
             for key in {knob.key, *(k for s in knob.steps for k in s)}:
                 if _exists(user, key):
                     values[key] = user.get(key)
@@ -393,7 +458,7 @@ class Governor:
                     continue
                 trial = {**position, knob.key: i + 1}
                 saved = predicted - self.predict(user, trial)
-                score = knob.error[i] / max(saved, 1e-3)
+                score = knob.error_of(steps[i]) / max(saved, 1e-3)
                 if best is None or score < best[0]:
                     best = (score, knob, self.predict(user, trial))
             if best is None:
@@ -420,7 +485,7 @@ class Governor:
         predicted = self.predict(user, self.position)
         correction = (self.ema_ms or predicted) - predicted
         best: tuple[tuple[int, float], Knob] | None = None
-        for knob, _steps in self._knobs_all(user):
+        for knob, steps in self._knobs_all(user):
             i = self.position.get(knob.key, 0)
             if i <= 0 or knob.key in self._backoff:
                 continue
@@ -429,7 +494,7 @@ class Governor:
             if after > AIM * budget:
                 continue
             cost = max(after - predicted - correction, 1e-3)
-            rank = (0 if knob.fovea else 1, -knob.error[i - 1] / cost)
+            rank = (0 if knob.fovea else 1, -knob.error_of(steps[i - 1]) / cost)
             if best is None or rank < best[0]:
                 best = (rank, knob)
         if best is None:

@@ -34,7 +34,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 CHUNK_TRIANGLES = 16384  # meshes above this are split into chunks of at most this many
-LOD_MIN_TRIANGLES = 1024  # smaller meshes are always drawn in full
+LOD_MIN_TRIANGLES = 128  # smaller meshes are always drawn in full (real rooms: many small ones)
 LOD_FRACTIONS = (0.5, 0.25, 0.1)  # the simplified levels' share of a chunk's triangles
 CACHE_VERSION = 2
 

@@ -34,3 +34,9 @@ def text_image(lines: list[str], padding: int = 6) -> np.ndarray:
     for i, line in enumerate(lines):
         draw.text((padding, padding + i * line_h), line, font=font, fill=(255, 255, 255, 255))
     return np.asarray(img, np.uint8)
+
+
+def with_status(lines: list[str], status: str | None) -> list[str]:
+    """The statistics lines plus a status line such as the refinement's "refining 63%"
+    (``app.refine.Refinement.status_line``; None: nothing to say)."""
+    return [*lines, status] if status else list(lines)

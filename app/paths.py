@@ -42,6 +42,7 @@ class CameraPath:
     keys: list[PathKey]
     scene: str = ""
     _times: list[float] = field(default_factory=list, repr=False)
+    name: str = ""  # a built-in path's name ("" for a file)
 
     def __post_init__(self) -> None:
         if not self.keys:
@@ -154,3 +155,22 @@ def still_path(
     x, y, z = (float(v) for v in position)
     keys = [PathKey(t, (x, y, z), yaw_deg, pitch_deg) for t in (0.0, seconds)]
     return CameraPath(keys, scene)
+
+
+# The refinement benchmark's path (issue 15): walk 2 s through the showroom, then stand still
+# 5 s; ``app.lab.bench`` measures how fast the picture refines after the stop.
+SHOWROOM_STOP = "showroom_stop"
+SHOWROOM_STOP_AT_S = 2.0
+
+
+def showroom_stop() -> CameraPath:
+    """Walk 2 s (the showroom walkthrough's first steps), then stand 5 s, gaze resting."""
+    keys = [
+        PathKey(0.0, (3.0, 1.6, 2.3), 20.0, -4.0, (0.45, 0.42)),
+        PathKey(1.0, (2.0, 1.6, 1.75), 14.0, -3.0, (0.62, 0.46)),
+        PathKey(SHOWROOM_STOP_AT_S, (0.75, 1.6, 1.05), 5.0, 0.0, (0.5, 0.5)),
+        PathKey(SHOWROOM_STOP_AT_S + 5.0, (0.75, 1.6, 1.05), 5.0, 0.0, (0.5, 0.5)),
+    ]
+    path = CameraPath(keys, "showroom")
+    path.name = SHOWROOM_STOP
+    return path

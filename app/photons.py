@@ -2,12 +2,13 @@
 
 These kinds of light emit photons (shared out by their luminous power, largest remainder):
 
-* **Point lights**, isotropically, with flux ``4 pi I color / n`` per photon. The renderer's
-  direct light is not physical (``E = I color window(d) / (d^2 + 1) cos``), so at a photon's
-  first hit its flux is multiplied by ``window(d) d^2 / (d^2 + 1)``: the first-hit photon density
-  then equals the renderer's direct irradiance, and the indirect light it seeds matches what the
-  renderer shows as direct light. That first hit is *not* stored (the direct part stays analytic
-  in the renderer); later diffuse hits are.
+* **Point lights**, isotropically, with flux ``4 pi I color / n`` per photon (lumen for I
+  candela). The renderer's direct light is the physical inverse square with a range window and
+  a 10 cm floor (``E = I color window(d) / max(d^2, 0.01) cos``, ``app.scene.lamp_falloff``),
+  so at a photon's first hit its flux is multiplied by ``window(d) d^2 / max(d^2, 0.01)`` (1
+  for most hits): the first-hit photon density then equals the renderer's direct irradiance,
+  and the indirect light it seeds matches what the renderer shows as direct light. That first
+  hit is *not* stored (the direct part stays analytic in the renderer); later diffuse hits are.
 * **Emissive triangles** (area lights: ``material.emissive`` is linear RGB radiance), sampled by
   ``area * luminance(emissive)``, a uniform point on the triangle and a cosine-weighted direction;
   the total power is ``pi * sum(A_i L_e_i)``. A triangle emits from its *front* face, the side its
@@ -54,7 +55,7 @@ from app.daylight_photons import (
 )
 from app.photon_map import PhotonMap, encode_directions
 from app.raycast import RayCaster
-from app.scene import Material, Scene
+from app.scene import LIGHT_MIN_DIST2, Material, Scene
 
 #: Photon paths traced together: one batched embree call per bounce for this many live rays.
 CHUNK = 2**18
@@ -182,7 +183,10 @@ def trace_photons(
                 d2 = np.where(is_point, dist * dist, 0.0)
                 with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
                     x = d2 / np.where(is_point, reach * reach, 1.0)
-                    factor = np.clip(1.0 - x * x, 0.0, 1.0) ** 2 * d2 / (d2 + 1.0)
+                    # lamp_falloff(d2) * d^2: the window, and the 10 cm floor near the lamp
+                    factor = (
+                        np.clip(1.0 - x * x, 0.0, 1.0) ** 2 * d2 / np.maximum(d2, LIGHT_MIN_DIST2)
+                    )
                 flux = np.where(is_point[:, None], flux * factor[:, None], flux)
                 store = ~(is_point | is_beam | (sky_first & (not STORE_SKY_FIRST_HIT)))
             else:

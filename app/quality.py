@@ -31,7 +31,8 @@ def full_quality(settings: Settings, converged_photons: bool = True) -> Settings
     full-rate lighting without a mask (CPS none) and, where there is indirect light, the
     photon map gathered per eye without reuse (converged: 4M paths at r = 10 cm, unless
     ``converged_photons`` is False: then the current map), drawn at full resolution with no
-    frame rate held; everything else the same."""
+    frame rate held, the meshes as loaded and soft shadow edges (where shadows are on);
+    everything else the same."""
     ref = settings.copy()
     ref.tcr.enabled = False
     ref.tcr.tint = False
@@ -46,8 +47,14 @@ def full_quality(settings: Settings, converged_photons: bool = True) -> Settings
     ref.photons.stereo_reuse = False
     ref.photons.show_reuse = False
     ref.render.target_fps = "0"  # the reference holds no frame rate: every knob at full
+    # One frame's reference depends on that frame alone: no running mean of its own (a
+    # refining frame's jitter is drawn once, at full quality).
+    ref.render.refine = "off"
     ref.render.scale = 1.0
     ref.tcr.level_bias = 0
+    ref.render.lod_bias = 0.0  # the meshes as loaded
+    if ref.render.shadows == "hard":
+        ref.render.shadows = "soft"  # shadows on: their filtered edges
     return ref
 
 

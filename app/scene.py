@@ -107,6 +107,27 @@ class Light:
 
 PointLight = Light  # the name the lamps had before spots and the sun
 
+#: The floor on a lamp's squared distance (m2) in its inverse-square falloff: 10 cm, so a
+#: surface touching a lamp is bright, not infinite. The renderer's shaders get the same value
+#: (render.constants.LIGHT_MIN_DIST2).
+LIGHT_MIN_DIST2 = 0.01
+
+
+def range_window(d2: Any, range_m: float) -> Any:
+    """The smooth window that takes a lamp's light to exactly 0 at ``range_m`` (so culling by
+    range is exact): ``clamp(1 - (d^2 / r^2)^2, 0, 1)^2``, 1 near the lamp."""
+    x = np.asarray(d2, np.float64) / (float(range_m) ** 2)
+    return np.clip(1.0 - x * x, 0.0, 1.0) ** 2
+
+
+def lamp_falloff(d2: Any, range_m: float) -> Any:
+    """A point or spot lamp's irradiance per candela at squared distance ``d2`` (m2), facing
+    it: the physical inverse square ``1 / max(d^2, LIGHT_MIN_DIST2)`` times the range window,
+    as render/shaders/shading.glsl computes it (so E = I cos / d^2 lux for I candela, what a
+    path tracer gives)."""
+    d2 = np.asarray(d2, np.float64)
+    return range_window(d2, range_m) / np.maximum(d2, LIGHT_MIN_DIST2)
+
 
 @dataclass
 class Viewpoint:

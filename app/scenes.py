@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.paths import CameraPath, PathKey, builtin_path
+from app.paths import SHOWROOM_STOP, CameraPath, PathKey, builtin_path, showroom_stop
 from app.scene import Scene
 
 if TYPE_CHECKING:
@@ -71,6 +71,7 @@ def _generated_paths() -> dict[str, Callable[[], CameraPath]]:
     from assets import corridor, tcr_cube
 
     return {
+        SHOWROOM_STOP: showroom_stop,
         "tcr_cube_distance": tcr_cube.distance_path,
         "tcr_cube_orbit": tcr_cube.orbit_path,
         "tcr_cube_gaze": tcr_cube.gaze_path,

@@ -18,6 +18,7 @@ from app.gaze import GazeModel
 from app.navigation import Walker
 from app.paths import FIXED_DT, CameraPath, PathKey
 from app.raycast import RayCaster
+from app.refine import Refinement, RefineStep, refine_on
 from app.scene import Scene
 from app.scenes import default_path
 from app.settings import Settings
@@ -48,10 +49,19 @@ class Session:
         # (the EV shown at before the Brightness, the EV the meter found for the room or
         # None). None: not known, from the settings alone.
         self.exposure_state: tuple[float, float | None] | None = None
+        # Progressive refinement while viewpoint and gaze rest (app.refine); ``_settings_key``
+        # is the settings it refines (a change starts it again).
+        self.refinement = Refinement()
+        self.last_step = RefineStep()
+        self._settings_key = ""
+        # The display's refresh rate (the window sets it; None headless): render.refine "auto"
+        # refines only with one.
+        self.display_hz: float | None = None
 
     def set_scene(self, scene: Scene, path: CameraPath | None = None) -> None:
         """Switch scenes; everything indexed by the old scene's meshes is forgotten first."""
         self.exposure_state = None  # measured in the old room
+        self.refinement.reset()
         self.gazed = None
         self.levels = None
         self.edge = []
@@ -107,6 +117,7 @@ class Session:
         self.motion = MotionStateMachine(t.move_on, t.move_off, t.window_s)
         self._last_pose = None
         self.viewpoint_speed = 0.0
+        self.refinement.reset()  # a jump along the path is a move
 
     def apply_key(self, key: PathKey, dt: float) -> None:
         self.walker.place(key.position, key.yaw_deg, key.pitch_deg)
@@ -123,6 +134,20 @@ class Session:
         m = self.motion
         m.move_on, m.move_off, m.window_s = t.move_on, t.move_off, t.window_s
         m.update(dt, self.viewpoint_speed, self.gaze.state.fixed)
+        g = self.gaze.state
+        w, h = self.eye_size
+        wk = self.walker
+        x, y, z = (float(v) for v in wk.position)
+        fov = self.settings.stereo.fov_deg
+        self.refinement.observe(
+            dt,
+            self.viewpoint_speed,
+            t.move_off,
+            (g.u, g.v),
+            (self.camera.horizontal_fov_deg(w, h), fov),
+            (x, y, z, float(wk.yaw_deg), float(wk.pitch_deg)),
+            float(fov) / max(1, h),
+        )
         self.gazed = self.gazed_index()
         self.edge = self.edge_caps()
         if self.tcr is not None:
@@ -196,19 +221,42 @@ class Session:
             g.fixed,
         )
 
+    def refine_step(self) -> RefineStep:
+        """The next frame's refinement request (counts one rendered frame): the settings
+        refined are those of the first frame at rest; any change starts it again."""
+        r = self.settings.render
+        ref = self.refinement
+        ref.enabled = refine_on(r.refine, self.display_hz)
+        ref.target = max(1, int(r.refine_samples))
+        key = repr(self.settings)
+        if key != self._settings_key:
+            self._settings_key = key
+            ref.frames = 0
+        self.last_step = ref.next_frame()
+        return self.last_step
+
     def frame_input(self, eye_width: int, eye_height: int) -> FrameInput:
+        """The frame to render now (each call is one rendered frame: it advances the
+        refinement while the viewer rests)."""
         self.eye_size = (max(1, int(eye_width)), max(1, int(eye_height)))
         w = self.walker
         self.camera.set_pose(w.position, w.yaw_deg, w.pitch_deg)
         g = self.gaze.state
         caps = [(e.caps["left"], e.caps["right"], e.caps["bottom"]) for e in self.edge]
+        step = self.refine_step()
+        # Refining asks for full quality: the finest texture levels (TCR's None).
+        levels = self.levels if self.settings.tcr.enabled and not step.refining else None
         return FrameInput(
-            self.camera.eyes(eye_width, eye_height),
+            self.camera.eyes(eye_width, eye_height, step.jitter),
             (g.u, g.v),
             g.fixed,
-            self.levels if self.settings.tcr.enabled else None,
+            levels,
             caps or None,
             [e.hits for e in self.edge] or None,
+            refining=step.refining,
+            sample=step.sample,
+            refine_target=step.target,
+            jitter=step.jitter,
         )
 
     # -- queries -------------------------------------------------------------------------------

@@ -184,6 +184,17 @@ def _clock_time(value: Any) -> str:
     return f"{hours:02d}:{minutes:02d}"
 
 
+def _on_off_auto(value: Any) -> str:
+    """``"auto"``, ``"on"`` or ``"off"``; a yes/no value (``true``, ``1``, ``no``) reads as on
+    or off, so a file that wrote the setting as a switch still loads."""
+    text = str(value).strip().lower()
+    if text in ("1", "true", "yes"):
+        return "on"
+    if text in ("0", "false", "no"):
+        return "off"
+    return text
+
+
 def _target_fps(value: Any) -> str:
     """``"auto"``, or a frame rate in [0, 240] written without trailing zeros (``"30"``)."""
     text = str(value).strip().lower()
@@ -362,12 +373,21 @@ class RenderSettings:
     )
     ambient: float = _opt(
         0.06,
-        "Light that reaches every surface evenly, so shadows are never fully black.",
+        "Light that reaches every surface evenly, so shadows are never fully black. Used "
+        "when the even light is not worked out from the lamps, and with bounced light on.",
         label="Ambient light",
         lo=0.0,
         hi=4.0,
         decimals=2,
         step=0.01,
+    )
+    ambient_estimate: bool = _opt(
+        True,
+        "Works the even light out from the lamps and the sun: how much of their light the "
+        "room's surfaces send back, so a pale lit room gets more of it than a dark one. "
+        "Off: the fixed ambient light.",
+        label="Even light from the lamps",
+        paper="Split-flux estimate of the indirect light (lighting design's enclosure model)",
     )
     ao: str = _opt(
         "off",
@@ -493,6 +513,31 @@ class RenderSettings:
         paper="AMD FSR 1: edge-adaptive spatial upsampling",
         choices=("edge", "bilinear"),
         choice_labels={"edge": "Edge-preserving (FSR 1 style)", "bilinear": "Plain (bilinear)"},
+    )
+    # Progressive refinement (app/refine.py). "auto" is on in the window (a display refresh
+    # rate is known) and off in headless hosts, so renders, benches and tests stay the same.
+    refine: str = _opt(
+        "auto",
+        "While you stand still and your gaze rests, the picture keeps improving frame by "
+        "frame until it reaches full quality: smooth edges, the finest textures and full "
+        "shading, sharpest where you look first. Any movement starts it again. Automatic "
+        "refines in the window only: pictures and measurements made without it stay as drawn.",
+        label="Refine the picture while still",
+        paper="Progressive refinement (accumulated jittered samples, as in Enscape)",
+        choices=("auto", "on", "off"),
+        choice_labels={"auto": "Automatic", "on": "On", "off": "Off"},
+        check=_on_off_auto,
+    )
+    refine_samples: int = _opt(
+        64,
+        "How many slightly shifted pictures are averaged where you look before the picture "
+        "counts as refined; the rest of the view takes half as long again. More gives "
+        "smoother edges and takes longer.",
+        label="Refinement steps",
+        unit="pictures",
+        lo=2,
+        hi=1024,
+        step=2.0,
     )
     # Off by default: llvmpipe's anisotropic filter turns magnified texels into round blobs.
     anisotropy: float = _opt(

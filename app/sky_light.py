@@ -78,6 +78,21 @@ def smooth(values: np.ndarray, indices: np.ndarray, rounds: int = SMOOTH_ROUNDS)
     return out.astype(np.float32)
 
 
+def occluders(scene: Scene) -> np.ndarray:
+    """The triangles that hide the sky, (T, 3, 3) float32: every mesh but those that cast no
+    shadow in the renderer (render/shadows.py ``casts``): a glowing pane that shows the sky
+    beyond a window, a lamp's bulb, and blended glass let the sky's light through."""
+    parts = []
+    for m in scene.meshes:
+        mat = scene.materials[m.material] if 0 <= m.material < len(scene.materials) else None
+        if mat is not None and (any(mat.emissive) or mat.alpha_mode == "BLEND"):
+            continue
+        parts.append(np.asarray(m.positions)[np.asarray(m.indices, np.int64)])
+    if not parts:
+        return np.zeros((0, 3, 3), np.float32)
+    return np.concatenate(parts).astype(np.float32)
+
+
 def sky_visibility(
     scene: Scene,
     caster: RayCaster | None = None,
@@ -90,7 +105,7 @@ def sky_visibility(
     its normal points to and on the other side. None when ``cancelled()`` turned true."""
     rng = np.random.default_rng(seed)
     if caster is None:  # its own: embree builds a shared one lazily, not safely from two threads
-        caster = RayCaster(scene.triangles())
+        caster = RayCaster(occluders(scene))
     if not scene.meshes:
         return []
     pos = np.concatenate([m.positions for m in scene.meshes]).astype(np.float64)

@@ -28,7 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from app.paths import CameraPath, PathKey
-from app.scene import Mesh, PointLight, Scene, Texture, Viewpoint
+from app.scene import Mesh, PointLight, Scene, Texture, Viewpoint, lamp_falloff
 from assets.showroom import MeshBuilder, _Materials, rot_x, rot_y, srgb
 from assets.textures import (
     PAINTING_ASPECTS,
@@ -609,9 +609,8 @@ def irradiance_profile(lights: Sequence[PointLight]) -> np.ndarray:
         d2 = np.einsum("ij,ij->i", v, v)
         d = np.sqrt(d2)
         cos = np.clip(np.einsum("ij,ij->i", v, nrm) / np.maximum(d, 1e-9), 0.0, None)
-        window = np.clip(1.0 - (d2 / light.range_m**2) ** 2, 0.0, 1.0) ** 2
         lum = float(np.dot(light.color, (0.2126, 0.7152, 0.0722)))
-        total += lum * light.intensity * cos / (d2 + 1.0) * window
+        total += lum * light.intensity * cos * lamp_falloff(d2, light.range_m)
     return np.bincount(slices, total) / np.bincount(slices)
 
 

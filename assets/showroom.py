@@ -27,7 +27,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from app.color import srgb8_to_linear
-from app.scene import Material, Mesh, PointLight, Scene, Texture, Viewpoint
+from app.scene import Material, Mesh, PointLight, Scene, Texture, Viewpoint, lamp_falloff
 from assets.textures import PAINTING_ASPECTS, checker_quadrants, make_textures
 
 ROOM_X = 8.0  # width along x (m)
@@ -39,7 +39,9 @@ WALL_TILE_M = 2.0  # one 512 px wallpaper / parquet tile per 2 m
 CEILING_TILE_M = 1.0  # one 64 px ceiling tile per metre
 LIGHT_SEED = 7_301
 WARM_WHITE = (1.0, 0.87, 0.72)
-FOUR_LIGHT_INTENSITY = 6.5  # radiance scale at 1 m of each of the four ceiling lights
+# candela of each of the four ceiling lights (physical inverse square: 5.6 lux at 1 m; 6.5
+# under the old 1 / (d^2 + 1) law, scaled by 0.86 so the room keeps its brightness)
+FOUR_LIGHT_INTENSITY = 5.6
 FOUR_LIGHT_RANGE_M = 6.0
 GRID_LIGHT_RANGE_M = 2.5
 # The room's north for daylight (Scene.north_deg, as sky.north_deg): the window wall faces
@@ -714,10 +716,6 @@ _TALL_FURNITURE: list[tuple[tuple[float, float], float, float]] = [
 ]
 
 
-def _window_falloff(d: np.ndarray, range_m: float) -> np.ndarray:
-    return np.clip(1.0 - (d / range_m) ** 4, 0.0, 1.0) ** 2
-
-
 def _shell_samples() -> tuple[np.ndarray, np.ndarray]:
     """Points and inward normals on the floor and walls, to compare light setups."""
     xs = np.linspace(-HX + 0.25, HX - 0.25, 16)
@@ -753,7 +751,7 @@ def shell_irradiance(lights: Sequence[PointLight]) -> float:
         d = np.linalg.norm(v, axis=1)
         cos = np.clip(np.einsum("ij,ij->i", v, nrm) / np.maximum(d, 1e-9), 0.0, None)
         lum = float(np.dot(light.color, (0.2126, 0.7152, 0.0722)))
-        total += lum * light.intensity * cos / (d * d + 1.0) * _window_falloff(d, light.range_m)
+        total += lum * light.intensity * cos * lamp_falloff(d * d, light.range_m)
     return float(total.mean())
 
 
@@ -847,7 +845,7 @@ def build_texture_test_scene() -> Scene:
         [b.mesh("checker_quad", 0)],
         [material],
         [checker_quadrants()],
-        [PointLight((0.0, EYE_HEIGHT, 0.0), (1.0, 1.0, 1.0), 6.0, 10.0)],
+        [PointLight((0.0, EYE_HEIGHT, 0.0), (1.0, 1.0, 1.0), 4.8, 10.0)],  # 1.2 lux at 2 m
         Viewpoint((0.0, EYE_HEIGHT, 0.0), 0.0, 0.0),
         floor_y=0.0,
         source="built-in",

@@ -8,10 +8,13 @@ fails if one does). Python code imports the names from here.
 from __future__ import annotations
 
 from app.cps import MAX_LEVEL
+from app.scene import LIGHT_MIN_DIST2
 
 # Lights: the uniform block holds this many (std140, three vec4 each: 48 KiB of the 64 KiB
 # block limit).
 MAX_LIGHTS = 1024
+# A lamp's inverse-square falloff 1 / max(d^2, LIGHT_MIN_DIST2) (m2): LIGHT_MIN_DIST2 is
+# defined with the scene model (app.scene.lamp_falloff, the CPU side) and injected from here.
 # Shadow maps (render/shadows.py): tiles of one depth atlas, SHADOW_ATLAS texels square; a
 # point light takes six tiles (cube faces), a spot or the sun one.
 MAX_SHADOW_TILES = 64
@@ -47,6 +50,11 @@ LEVEL_TINTS = (
     (1.0, 0.55, 0.0),
     (1.0, 0.1, 0.1),
 )
+
+# Merged static meshes (render.gpu_scene.GpuGroup): the per-object table's SSBO binding (one
+# vec4 per mesh: the TCR tint rgb and its texture level minus the resident base), read by
+# geometry.vert.glsl under the OBJECT_TABLE variant. Bindings 0-5 are the photon gather's.
+OBJECT_TABLE_BINDING = 6
 
 # Photon gather: record / start textures are 1 << PM_TEX_SHIFT texels wide; work groups of
 # PM_GROUP invocations (Algorithm 1 relies on it); heaps of at most PM_MAX_K entries; the
@@ -125,6 +133,7 @@ def _glsl(value: object) -> str:
 # What every shader sees (values as GLSL text).
 SHADER_DEFINES: dict[str, object] = {
     "MAX_LIGHTS": MAX_LIGHTS,
+    "LIGHT_MIN_DIST2": repr(float(LIGHT_MIN_DIST2)),
     "LIGHT_TILE": LIGHT_TILE,
     "MAX_PER_TILE": MAX_PER_TILE,
     "ALL_LIGHTS": f"{ALL_LIGHTS}u",
@@ -136,6 +145,7 @@ SHADER_DEFINES: dict[str, object] = {
     "PM_MAX_K": PM_MAX_K,
     "PM_NO_WINNER": f"0x{PM_NO_WINNER:X}u",
     "MAX_SHADOW_TILES": MAX_SHADOW_TILES,
+    "OBJECT_TABLE_BINDING": OBJECT_TABLE_BINDING,
     "TEXTURE_UNIT_SHADOW_ATLAS": TEXTURE_UNITS["shadow_atlas"],
     **{f"IMAGE_UNIT_{k.upper()}": v for k, v in IMAGE_UNITS.items()},
 }

@@ -1,4 +1,5 @@
-"""The scene on the GPU: one vertex/index buffer pair per mesh, texture pyramids, lights.
+"""The scene on the GPU: one vertex/index buffer pair per mesh, texture pyramids, lights, and
+the static meshes merged per material.
 
 Geometry is uploaded once per scene; base colour textures stream their pyramid levels
 (TextureStreamer); the per-pixel material maps (normal, metallic-roughness, occlusion: linear
@@ -10,6 +11,22 @@ The material of one mesh reaches a shader through two calls, for every pass that
 picks the program variant (``alpha_mask_defines`` for depth-only passes, with
 ``shaders/alpha_mask.glsl``) and ``GpuScene.bind_material(prog, index)`` sets its uniforms and
 textures (units from ``render.constants.TEXTURE_UNITS``).
+
+Merged meshes (``GpuScene(merge=True)``, the renderer's default): real interiors hold a
+thousand meshes or more, and on a software rasteriser each draw call (its program, uniforms,
+textures and validation) costs more than its triangles. The meshes are grouped by material
+into one vertex/index buffer pair per group (``GpuGroup``), each vertex carrying its mesh's
+index (``in_object``). What a per-mesh draw sets as uniforms (the TCR level
+and tint) is one row per mesh of the per-object table, an SSBO at
+``render.constants.OBJECT_TABLE_BINDING`` that ``geometry.vert.glsl`` reads under the
+``OBJECT_TABLE`` variant (``write_object_table``). A group's index buffer holds every member's
+chunks (``app.lod``) level by level: all level-0 ranges first, in member order, then level 1,
+and so on. Culling and level choice stay per chunk, so per mesh (``render.culling`` on the
+groups' chunk table), and the visible ranges that touch are drawn as one call: a group seen
+whole at full detail is one call, and a group split into several ranges is one indirect
+multi-draw of them. Blended groups keep each member's chunks too (``draw_members``): the blend
+pass sorts meshes back to front as before and draws each run of one group's meshes in that
+order as one multi-draw. ``merge=False`` keeps the per-mesh path (tests, debugging).
 """
 
 from __future__ import annotations
@@ -25,7 +42,7 @@ from app.ao_bake import BackgroundBake
 from app.camera import EyeView
 from app.scene import Light, Material, Scene, Texture
 from app.tangents import generate_tangents
-from render.constants import MAX_LIGHTS
+from render.constants import LEVEL_TINTS, MAX_LIGHTS, OBJECT_TABLE_BINDING
 from render.culling import (
     Chunks,
     chunk_mesh,
@@ -73,7 +90,41 @@ class GpuMesh:
         return self.material.alpha_mode == "BLEND"
 
 
-def material_defines(mesh: GpuMesh) -> dict[str, object]:
+@dataclass
+class GpuGroup:
+    """Meshes of one material (none blended) in one vertex/index buffer pair. ``members``:
+    their mesh indices; ``chunks``: every member's chunks as ranges of this index buffer
+    (level 0 of all members first, then each coarser level); ``index_count``: the level-0
+    block's length (the whole group at full detail)."""
+
+    material_index: int
+    members: list[int]
+    vbo: moderngl.Buffer
+    ibo: moderngl.Buffer
+    sky_vbo: moderngl.Buffer
+    object_vbo: moderngl.Buffer  # per vertex: the mesh index (1i)
+    material: Material
+    texture: int | None
+    vertex_counts: list[int]  # each member's vertices, in order
+    index_count: int
+    tangents: bool = False
+    maps: dict[str, moderngl.Texture] | None = None
+    chunks: Chunks | None = None
+    member_columns: list[tuple[int, int]] | None = None  # each member's columns of chunks
+
+    @property
+    def blended(self) -> bool:
+        return self.material.alpha_mode == "BLEND"
+
+    def member_chunks(self, k: int) -> Chunks:
+        """Member ``k``'s chunks as ranges of this group's index buffer."""
+        assert self.chunks is not None and self.member_columns is not None
+        a, b = self.member_columns[k]
+        c = self.chunks
+        return Chunks(c.first[:, a:b], c.count[:, a:b], c.error[:, a:b], c.lo[a:b], c.hi[a:b])
+
+
+def material_defines(mesh: GpuMesh | GpuGroup) -> dict[str, object]:
     """The material.glsl variant for one mesh: which maps it samples, its alpha mode."""
     maps = mesh.maps or {}
     mode = mesh.material.alpha_mode
@@ -89,7 +140,7 @@ def material_defines(mesh: GpuMesh) -> dict[str, object]:
     return {"HAS_TEXTURE": mesh.texture is not None, **{k: True for k, v in extra.items() if v}}
 
 
-def alpha_mask_defines(mesh: GpuMesh) -> dict[str, object]:
+def alpha_mask_defines(mesh: GpuMesh | GpuGroup) -> dict[str, object]:
     """The variant for a depth-only pass (ids, shadow maps) with ``alpha_mask.glsl``: only a
     MASK material needs its base colour texture there."""
     if mesh.material.alpha_mode != "MASK":
@@ -104,6 +155,7 @@ class GpuScene:
         scene: Scene,
         anisotropy: float = 1.0,
         stream_in: bool = False,
+        merge: bool = True,
     ) -> None:
         self.ctx = ctx
         self.scene = scene
@@ -118,6 +170,8 @@ class GpuScene:
         self.anisotropy = anisotropy
         self._maps: dict[tuple[int, bool], moderngl.Texture] = {}
         self.meshes: list[GpuMesh] = []
+        vertex_data: list[np.ndarray] = []  # each mesh's interleaved vertices (for merging)
+        index_data: list[np.ndarray] = []  # and its drawing-order indices (every level)
         for m in scene.meshes:
             colors = m.colors if m.colors is not None else np.ones_like(m.positions)
             mat = scene.materials[m.material]
@@ -137,6 +191,8 @@ class GpuScene:
             else:
                 indices, chunks = chunk_mesh(m.positions, m.indices)
             centre = (lo + hi) * 0.5
+            vertex_data.append(data)
+            index_data.append(np.asarray(indices, np.uint32).reshape(-1))
             self.meshes.append(
                 GpuMesh(
                     m.name,
@@ -154,8 +210,32 @@ class GpuScene:
             )
         self.cull = True  # render.culling; off: every range drawn (the test's reference)
         self._all, self._owner = merge_chunks([m.chunks for m in self.meshes])
+        self.groups: list[GpuGroup] = []
+        self.standalone = list(range(len(self.meshes)))  # meshes drawn one by one
+        self.group_of: dict[int, int] = {}  # mesh index -> its group
+        self._member_all, self._member_owner = merge_chunks([])
+        if merge:
+            self._merge(vertex_data, index_data)
+        self._group_all, self._group_owner = merge_chunks([g.chunks for g in self.groups])
+        del vertex_data, index_data
+        n_rows = max(len(self.meshes), 1)
+        self.object_table = ctx.buffer(reserve=n_rows * 16)
+        self._table_key: bytes | None = None
+        # Each mesh's base colour texture (-1: none), for the table's resident bases.
+        self._texture_of = np.array(
+            [-1 if m.texture is None else m.texture for m in self.meshes], np.int64
+        )
         self._range_cache: dict[tuple, dict[int, list[tuple[int, int]]]] = {}
         self.drawn: dict[int, int] = {}  # triangles drawn per view this frame (eye index)
+        self.calls: dict[int, int] = {}  # the geometry pass's draw calls per eye this frame
+        self.draw_calls = 0  # every draw call issued for meshes or groups (a running count)
+        self._group_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
+        # A group whose visible ranges are several (culled members, levels of detail) is one
+        # glMultiDrawElementsIndirect of them; False: one call per range (measuring).
+        self.multi_draw = True
+        self._indirect: dict[tuple, tuple[moderngl.Buffer, dict[int, tuple[int, int]]]] = {}
+        self._group_ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
+        self._group_ao_buffers: dict[int, moderngl.Buffer] = {}
         self.lod_bias = 0.0  # render.lod_bias: pixels a simplified level may stray (0: full)
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
@@ -166,6 +246,108 @@ class GpuScene:
         self.light_buffer = ctx.buffer(reserve=3 * MAX_LIGHTS * 16)
         self.light_version = 0  # counts set_lights calls (the shadow maps' cache watches it)
         self.set_lights(scene.lights)
+
+    def _merge(self, vertex_data: list[np.ndarray], index_data: list[np.ndarray]) -> None:
+        """Group the meshes by material (``GpuGroup``), in the order of each group's first
+        mesh; the empty ones stay standalone. A blended group's members keep their own chunk
+        table (``_member_all``): the blend pass draws them in its back-to-front order."""
+        by_material: dict[int, list[int]] = {}
+        for i, (src, mesh) in enumerate(zip(self.scene.meshes, self.meshes)):
+            if mesh.chunks is not None:
+                by_material.setdefault(src.material, []).append(i)
+        grouped = {i for members in by_material.values() for i in members}
+        self.standalone = [i for i in range(len(self.meshes)) if i not in grouped]
+        member_chunks: list[Chunks | None] = [None] * len(self.meshes)
+        for material_index, members in by_material.items():
+            group = self._group(material_index, members, vertex_data, index_data)
+            for k, i in enumerate(members):
+                self.group_of[i] = len(self.groups)
+                if group.blended:
+                    member_chunks[i] = group.member_chunks(k)
+            self.groups.append(group)
+        self._member_all, self._member_owner = merge_chunks(member_chunks)
+
+    def _group(
+        self,
+        material_index: int,
+        members: list[int],
+        vertex_data: list[np.ndarray],
+        index_data: list[np.ndarray],
+    ) -> GpuGroup:
+        first_mesh = self.meshes[members[0]]
+        counts = [len(vertex_data[i]) for i in members]
+        bases = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        member_chunks: list[Chunks] = [c for c in (self.meshes[i].chunks for i in members) if c]
+        levels = max(c.levels for c in member_chunks)
+        columns = sum(c.first.shape[1] for c in member_chunks)
+        spans = np.cumsum([0] + [c.first.shape[1] for c in member_chunks]).tolist()
+        first = np.zeros((levels, columns), np.int64)
+        count = np.zeros((levels, columns), np.int64)
+        error = np.zeros((levels, columns))
+        parts: list[np.ndarray] = []
+        offset = 0
+        for level in range(levels):
+            col = 0
+            for base, i, c in zip(bases, members, member_chunks):
+                n = c.first.shape[1]
+                own = min(level, c.levels - 1)
+                error[level, col : col + n] = c.error[own]
+                if level < c.levels:
+                    indices = index_data[i]
+                    for k in range(n):
+                        a, b = int(c.first[level, k]), int(c.count[level, k])
+                        parts.append(indices[a : a + b] + np.uint32(base))
+                        first[level, col + k], count[level, col + k] = offset, b
+                        offset += b
+                else:  # a mesh with fewer levels repeats its coarsest
+                    first[level, col : col + n] = first[own, col : col + n]
+                    count[level, col : col + n] = count[own, col : col + n]
+                col += n
+        chunks = Chunks(
+            first,
+            count,
+            error,
+            np.concatenate([c.lo for c in member_chunks]),
+            np.concatenate([c.hi for c in member_chunks]),
+        )
+        ctx = self.ctx
+        vertices = np.concatenate([vertex_data[i] for i in members])
+        objects = np.repeat(np.asarray(members, np.int32), counts)
+        return GpuGroup(
+            material_index,
+            list(members),
+            ctx.buffer(np.ascontiguousarray(vertices, np.float32).tobytes()),
+            ctx.buffer(np.concatenate(parts).astype(np.uint32).tobytes()),
+            ctx.buffer(np.zeros((max(len(vertices), 1), 2), np.float32).tobytes()),
+            ctx.buffer(objects.tobytes()),
+            first_mesh.material,
+            first_mesh.texture,
+            counts,
+            int(count[0].sum()),
+            first_mesh.tangents,
+            first_mesh.maps,
+            chunks,
+            list(zip(spans[:-1], spans[1:])),
+        )
+
+    def write_object_table(self, levels: list[int] | None) -> None:
+        """The per-object table (one row per mesh: the TCR tint of its level and that level
+        minus its texture's resident base, as the per-mesh path's ``u_tint`` / ``u_level``),
+        uploaded when it changes and bound for the merged groups' draws."""
+        n = len(self.meshes)
+        rows = np.zeros((max(n, 1), 4), np.float32)
+        rows[:, :3] = 1.0
+        if levels is not None and len(levels) == n and n:
+            lv = np.asarray(levels, np.int64)
+            tints = np.asarray(LEVEL_TINTS, np.float32)
+            rows[:n, :3] = tints[np.clip(lv, 0, len(LEVEL_TINTS) - 1)]
+            bases = np.array([0, *(r.base for r in self.streamer.resident)], np.int64)
+            rows[:n, 3] = lv - bases[self._texture_of + 1]  # untextured: 0 (unused)
+        data = rows.tobytes()
+        if data != self._table_key:
+            self.object_table.write(data)
+            self._table_key = data
+        self.object_table.bind_to_storage_buffer(OBJECT_TABLE_BINDING)
 
     def set_lights(self, lights: list[Light]) -> None:
         """The lights the frame draws (the scene's, or those plus the sun): the uniform block
@@ -215,9 +397,19 @@ class GpuScene:
     ) -> None:
         """Mesh ``index``'s material into ``prog``: factors (where the variant has them) and
         textures on their units. ``names``: only these samplers (default: all it has)."""
+        self._bind(prog, self.meshes[index], names)
+
+    def bind_group_material(
+        self, prog: moderngl.Program, group: int, names: tuple[str, ...] | None = None
+    ) -> None:
+        """As :meth:`bind_material`, for merged group ``group`` (one material)."""
+        self._bind(prog, self.groups[group], names)
+
+    def _bind(
+        self, prog: moderngl.Program, mesh: GpuMesh | GpuGroup, names: tuple[str, ...] | None
+    ) -> None:
         from render.pass_graph import bind_texture, set_uniforms  # it imports this module
 
-        mesh = self.meshes[index]
         mat = mesh.material
         set_uniforms(
             prog,
@@ -253,55 +445,168 @@ class GpuScene:
             return 0
         if view_projection is None or not self.cull:
             vao.render(moderngl.TRIANGLES, vertices=self.meshes[index].vertex_count)
+            self.draw_calls += 1
             return self.meshes[index].vertex_count // 3
+        return self._draw_ranges(vao, self._view_ranges(view_projection, eye).get(index, ()))
+
+    def draw_group(
+        self,
+        vao: moderngl.VertexArray,
+        group: int,
+        view_projection: np.ndarray | None = None,
+        eye: EyeView | None = None,
+    ) -> int:
+        """As :meth:`draw`, for merged group ``group``: its members' visible chunks at their
+        levels, neighbouring ranges as one call. Returns the triangles drawn."""
+        g = self.groups[group]
+        if view_projection is None or not self.cull:
+            vao.render(moderngl.TRIANGLES, vertices=g.index_count)
+            self.draw_calls += 1
+            return g.index_count // 3
+        key = self._view_key(view_projection, eye, True)
+        every = self._view_ranges(view_projection, eye, merged=True)
+        ranges = every.get(group, ())
+        if len(ranges) < 2 or not self.multi_draw:
+            return self._draw_ranges(vao, ranges)
+        if key not in self._indirect:
+            self._indirect[key] = self._commands(every)
+        buffer, offsets = self._indirect[key]
+        start, n = offsets[group]
+        vao.render_indirect(buffer, moderngl.TRIANGLES, count=n, first=start)
+        self.draw_calls += 1
+        return sum(count for _, count in ranges) // 3
+
+    def draw_members(
+        self,
+        vao: moderngl.VertexArray,
+        members: list[int],
+        view_projection: np.ndarray,
+        eye: EyeView | None = None,
+    ) -> int:
+        """Meshes ``members`` of one blended group through its ``vao``, in this order (the
+        blend pass's back to front), each culled and at its level as :meth:`draw` would:
+        one indirect multi-draw of their ranges. Returns the triangles drawn."""
+        if self.cull:
+            every = self._view_ranges(view_projection, eye, merged="members")
+        else:
+            every = visible_ranges(self._member_all, np.zeros((0, 4)), None, self._member_owner)
+        ranges: list[tuple[int, int]] = []
+        for m in members:
+            for first, count in every.get(m, ()):
+                if ranges and ranges[-1][0] + ranges[-1][1] == first:
+                    ranges[-1] = (ranges[-1][0], ranges[-1][1] + count)
+                else:
+                    ranges.append((first, count))
+        if len(ranges) < 2 or not self.multi_draw:
+            return self._draw_ranges(vao, ranges)
+        buffer, _ = self._commands({0: ranges})
+        vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(ranges))
+        buffer.release()
+        self.draw_calls += 1
+        return sum(count for _, count in ranges) // 3
+
+    def _commands(
+        self, every: dict[int, list[tuple[int, int]]]
+    ) -> tuple[moderngl.Buffer, dict[int, tuple[int, int]]]:
+        """One view's ranges of every group as indirect draw commands (count, instances,
+        first index, base vertex, base instance) in one buffer, and where each group's are."""
+        rows: list[tuple[int, int, int, int, int]] = []
+        offsets = {}
+        for g, ranges in every.items():
+            offsets[g] = (len(rows), len(ranges))
+            rows += [(count, 1, first, 0, 0) for first, count in ranges]
+        data = np.asarray(rows, np.uint32).reshape(-1, 5)
+        return self.ctx.buffer(data.tobytes()), offsets
+
+    def _draw_ranges(self, vao: moderngl.VertexArray, ranges) -> int:
         drawn = 0
-        for first, count in self._view_ranges(view_projection, eye).get(index, ()):
+        for first, count in ranges:
             vao.render(moderngl.TRIANGLES, vertices=count, first=first)
             drawn += count
+        self.draw_calls += len(ranges)
         return drawn // 3
 
+    def _table(self, merged: bool | str) -> tuple[Chunks, np.ndarray]:
+        if merged == "members":  # blended groups' members, in their groups' index buffers
+            return self._member_all, self._member_owner
+        return (self._group_all, self._group_owner) if merged else (self._all, self._owner)
+
     def _view_ranges(
-        self, view_projection: np.ndarray, eye: EyeView | None
+        self, view_projection: np.ndarray, eye: EyeView | None, merged: bool | str = False
     ) -> dict[int, list[tuple[int, int]]]:
-        """Every mesh's ranges to draw for one view, its chunks tested and their levels
-        chosen all at once (real rooms hold hundreds of meshes); the last views' answers are
-        kept, so the passes of a frame that draw the same eye share them."""
-        lod = eye is not None and self.lod_bias > 0 and self._all.levels > 1
-        key = (
-            np.asarray(view_projection, np.float64).tobytes(),
-            np.asarray(eye.position, np.float64).tobytes() if lod and eye is not None else b"",
-            self.lod_bias if lod else 0.0,
-        )
+        """Every mesh's (``merged``: every group's; ``"members"``: every blended group
+        member's) ranges to draw for one view, its chunks tested and their levels chosen all
+        at once (real rooms hold hundreds of meshes); the last views' answers are kept, so
+        the passes of a frame that draw the same eye share them."""
+        table, owner = self._table(merged)
+        lod = eye is not None and self.lod_bias > 0 and table.levels > 1
+        key = self._view_key(view_projection, eye, merged)
         if key in self._range_cache:
             return self._range_cache[key]
         levels = None
         if lod and eye is not None:
             pixels_per_radian = float(eye.projection[1, 1]) * eye.height * 0.5
-            levels = lod_levels(self._all, eye.position, pixels_per_radian, self.lod_bias)
-        ranges = visible_ranges(self._all, frustum_planes(view_projection), levels, self._owner)
+            levels = lod_levels(table, eye.position, pixels_per_radian, self.lod_bias)
+        ranges = visible_ranges(table, frustum_planes(view_projection), levels, owner)
         if len(self._range_cache) >= 16:  # two eyes and the shadow maps' faces of a frame
             self._range_cache.clear()
+            for buffer, _ in self._indirect.values():
+                buffer.release()
+            self._indirect.clear()
         self._range_cache[key] = ranges
         return ranges
+
+    def _view_key(
+        self, view_projection: np.ndarray, eye: EyeView | None, merged: bool | str
+    ) -> tuple:
+        table = self._table(merged)[0]
+        lod = eye is not None and self.lod_bias > 0 and table.levels > 1
+        return (
+            merged,
+            np.asarray(view_projection, np.float64).tobytes(),
+            np.asarray(eye.position, np.float64).tobytes() if lod and eye is not None else b"",
+            self.lod_bias if lod else 0.0,
+        )
+
+    def _vertex_array(
+        self,
+        program: moderngl.Program,
+        mesh: GpuMesh | GpuGroup,
+        extra: list[tuple[moderngl.Buffer, str, str]],
+    ) -> moderngl.VertexArray:
+        """``mesh``'s vertices (the attributes ``program`` has) plus ``extra`` buffers whose
+        attribute ``program`` uses."""
+        layout = (TANGENT_FORMAT, TANGENT_ATTRS) if mesh.tangents else (VERTEX_FORMAT, VERTEX_ATTRS)
+        attrs = [a for a in layout[1] if a in program]
+        fmt = " ".join(
+            f if a in attrs else f[0] + "x4" for f, a in zip(layout[0].split(), layout[1])
+        )
+        buffers: list = [(mesh.vbo, fmt, *attrs)]
+        buffers += [(buf, f, name) for buf, f, name in extra if name in program]
+        return self.ctx.vertex_array(program, buffers, index_buffer=mesh.ibo, index_element_size=4)
 
     def vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
         key = (program.glo, index)
         if key not in self._vaos:
             mesh = self.meshes[index]
-            layout = (
-                (TANGENT_FORMAT, TANGENT_ATTRS) if mesh.tangents else (VERTEX_FORMAT, VERTEX_ATTRS)
-            )
-            attrs = [a for a in layout[1] if a in program]
-            fmt = " ".join(
-                f if a in attrs else f[0] + "x4" for f, a in zip(layout[0].split(), layout[1])
-            )
-            buffers = [(mesh.vbo, fmt, *attrs)]
-            if "in_sky" in program:
-                buffers.append((mesh.sky_vbo, "2f", "in_sky"))
-            self._vaos[key] = self.ctx.vertex_array(
-                program, buffers, index_buffer=mesh.ibo, index_element_size=4
-            )
+            self._vaos[key] = self._vertex_array(program, mesh, [(mesh.sky_vbo, "2f", "in_sky")])
         return self._vaos[key]
+
+    def group_vao(self, program: moderngl.Program, group: int) -> moderngl.VertexArray:
+        """Merged group ``group`` through ``program`` (with its mesh indices as in_object)."""
+        key = (program.glo, group)
+        if key not in self._group_vaos:
+            g = self.groups[group]
+            extra = [(g.sky_vbo, "2f", "in_sky"), (g.object_vbo, "1i", "in_object")]
+            self._group_vaos[key] = self._vertex_array(program, g, extra)
+        return self._group_vaos[key]
+
+    def _mesh_ao(self, index: int) -> np.ndarray:
+        """Mesh ``index``'s baked occlusion (N, 2), 1 where it has none or a wrong count."""
+        src = self.scene.meshes[index]
+        n = int(src.positions.shape[0])
+        ok = src.ao is not None and src.ao.shape == (n, 2)
+        return np.asarray(src.ao if ok else np.ones((n, 2)), np.float32)
 
     def ao_vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
         """Mesh ``index`` with its baked ambient occlusion as ``in_ao`` (render/ao.py); the
@@ -312,23 +617,23 @@ class GpuScene:
         if key not in self._ao_vaos:
             mesh = self.meshes[index]
             if index not in self._ao_buffers:
-                src = self.scene.meshes[index]
-                n = int(src.positions.shape[0])
-                ok = src.ao is not None and src.ao.shape == (n, 2)
-                ao = src.ao if ok else np.ones((n, 2))
-                self._ao_buffers[index] = self.ctx.buffer(np.asarray(ao, np.float32).tobytes())
-            fmt = " ".join(
-                f if a in program else f[0] + "x4"
-                for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS)
-            )
-            attrs = [a for a in VERTEX_ATTRS if a in program]
-            content: list = [(mesh.vbo, fmt, *attrs)]
-            if "in_ao" in program:
-                content.append((self._ao_buffers[index], "2f", "in_ao"))
-            self._ao_vaos[key] = self.ctx.vertex_array(
-                program, content, index_buffer=mesh.ibo, index_element_size=4
-            )
+                self._ao_buffers[index] = self.ctx.buffer(self._mesh_ao(index).tobytes())
+            extra = [(self._ao_buffers[index], "2f", "in_ao")]
+            self._ao_vaos[key] = self._vertex_array(program, mesh, extra)
         return self._ao_vaos[key]
+
+    def group_ao_vao(self, program: moderngl.Program, group: int) -> moderngl.VertexArray:
+        """As :meth:`ao_vao`, for merged group ``group`` (its members' occlusion in order)."""
+        self._poll_ao_bake()
+        key = (program.glo, group)
+        if key not in self._group_ao_vaos:
+            g = self.groups[group]
+            if group not in self._group_ao_buffers:
+                ao = np.concatenate([self._mesh_ao(i) for i in g.members])
+                self._group_ao_buffers[group] = self.ctx.buffer(ao.tobytes())
+            extra = [(self._group_ao_buffers[group], "2f", "in_ao")]
+            self._group_ao_vaos[key] = self._vertex_array(program, g, extra)
+        return self._group_ao_vaos[key]
 
     def _poll_ao_bake(self) -> None:
         if self.ao_bake is None:
@@ -337,24 +642,35 @@ class GpuScene:
             self.ao_bake = BackgroundBake(self.scene)
         if self.ao_bake.done and self.ao_bake.result is not None:
             self.scene, self.ao_bake.result = self.ao_bake.result, None
-            for v in self._ao_vaos.values():  # next draws upload the baked values
-                v.release()
-            for b in self._ao_buffers.values():
-                b.release()
-            self._ao_vaos.clear()
-            self._ao_buffers.clear()
+            self._release_ao()  # next draws upload the baked values
 
-    def release(self) -> None:
-        for v in (*self._vaos.values(), *self._ao_vaos.values()):
+    def _release_ao(self) -> None:
+        for v in (*self._ao_vaos.values(), *self._group_ao_vaos.values()):
             v.release()
-        for b in self._ao_buffers.values():
+        for b in (*self._ao_buffers.values(), *self._group_ao_buffers.values()):
             b.release()
         self._ao_vaos.clear()
         self._ao_buffers.clear()
+        self._group_ao_vaos.clear()
+        self._group_ao_buffers.clear()
+
+    def release(self) -> None:
+        self._release_ao()
+        for v in (*self._vaos.values(), *self._group_vaos.values()):
+            v.release()
+        self._group_vaos.clear()
         for m in self.meshes:
             m.vbo.release()
             m.ibo.release()
             m.sky_vbo.release()
+        for g in self.groups:
+            for buf in (g.vbo, g.ibo, g.sky_vbo, g.object_vbo):
+                buf.release()
+        self.groups.clear()
+        for buffer, _ in self._indirect.values():
+            buffer.release()
+        self._indirect.clear()
+        self.object_table.release()
         self.streamer.release()
         for tex in self._maps.values():
             tex.release()
@@ -369,6 +685,12 @@ class GpuScene:
             data = np.ascontiguousarray(v, np.float32)
             if data.nbytes == mesh.sky_vbo.size:
                 mesh.sky_vbo.write(data.tobytes())
+        for g in self.groups:
+            if max(g.members) >= len(values):
+                continue
+            rows = [np.ascontiguousarray(values[i], np.float32).reshape(-1) for i in g.members]
+            if all(r.size == 2 * n for r, n in zip(rows, g.vertex_counts)):
+                g.sky_vbo.write(np.concatenate(rows).tobytes())
 
     @property
     def texture_bytes(self) -> int:

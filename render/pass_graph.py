@@ -81,6 +81,11 @@ class FrameContext:
     split: Any = None  # render.ab_split.SplitFrame: the presenter's A/B split (None: none)
     # One eye's size in ``out`` (the eyes are drawn at render.scale of it; None: the targets').
     view_size: tuple[int, int] | None = None
+    # Progressive refinement (app.refine, render.refine): this frame is sample
+    # ``refine_sample`` of ``refine_target`` of the running mean.
+    refining: bool = False
+    refine_sample: int = 0
+    refine_target: int = 0
 
 
 # Resource name -> where the renderer's targets keep it: (table, attribute).

@@ -126,11 +126,8 @@ def _draw_meshes(
     drawn = 0
     streamer = scene.streamer
     tcr = frame.levels is not None
-    if order is None:
-        order = [i for i, m in enumerate(scene.meshes) if not m.blended]
-    for index in order:
-        mesh = scene.meshes[index]
-        defines = material_defines(mesh)
+
+    def variant(defines: dict[str, object]) -> moderngl.Program:
         if ao is not None:
             defines["AO"] = True
         if sky is not None:  # the forward path's daylight (render.sky)
@@ -140,7 +137,6 @@ def _draw_meshes(
             defines["TCR_TINT"] = frame.tint
         prog = shaders.program("geometry.vert.glsl", fragment, defines)
         uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
-        scene.bind_material(prog, index)
         if "u_eye" in prog:  # the forward and blend paths: they light the fragments themselves
             uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
@@ -148,6 +144,40 @@ def _draw_meshes(
                 sky.bind(prog)
         if ao is not None:
             bind_texture(prog, "ao", ao)
+        return prog
+
+    if order is None:
+        # Merged groups (render.gpu_scene.GpuGroup): their per-object levels and tints come
+        # from the object table; the meshes left standalone are drawn one by one below.
+        if scene.groups:
+            scene.write_object_table(frame.levels)
+        for g, group in enumerate(scene.groups):
+            if group.blended:  # the blend pass draws those, sorted
+                continue
+            prog = variant({**material_defines(group), "OBJECT_TABLE": True})
+            scene.bind_group_material(prog, g)
+            drawn += scene.draw_group(scene.group_vao(prog, g), g, eye.view_projection, eye)
+        order = [i for i in scene.standalone if not scene.meshes[i].blended]
+    elif scene.groups:
+        scene.write_object_table(frame.levels)
+    k = 0
+    while k < len(order):
+        index = order[k]
+        g = scene.group_of.get(index, -1)
+        if g >= 0:  # a run of one merged group's meshes in the order given: one draw
+            run = [index]
+            while k + len(run) < len(order) and scene.group_of.get(order[k + len(run)]) == g:
+                run.append(order[k + len(run)])
+            k += len(run)
+            prog = variant({**material_defines(scene.groups[g]), "OBJECT_TABLE": True})
+            scene.bind_group_material(prog, g)
+            vao = scene.group_vao(prog, g)
+            drawn += scene.draw_members(vao, run, eye.view_projection, eye)
+            continue
+        k += 1
+        mesh = scene.meshes[index]
+        prog = variant(material_defines(mesh))
+        scene.bind_material(prog, index)
         level = frame.levels[index] if frame.levels is not None else 0
         if mesh.texture is not None:
             resident = streamer.resident[mesh.texture]
@@ -175,8 +205,10 @@ class GBufferPass(RenderPass):
         for eye, tgt in zip(frame.eyes, res.targets):
             tgt.gbuffer.use()
             tgt.gbuffer.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            calls = frame.scene.draw_calls
             drawn = _draw_meshes(ctx, self.shaders, frame, eye, "gbuffer.frag.glsl")
             frame.scene.drawn[eye.index] = drawn
+            frame.scene.calls[eye.index] = frame.scene.draw_calls - calls
         ctx.disable(moderngl.DEPTH_TEST)
 
 
@@ -377,22 +409,43 @@ class EmissivePass(RenderPass):
         return deferred(settings)
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
+        scene = frame.scene
         emitters = [
             i
-            for i, m in enumerate(frame.scene.meshes)
-            if any(m.material.emissive) and not m.blended  # the blend pass adds their glow
+            for i in scene.standalone
+            if any(scene.meshes[i].material.emissive)
+            and not scene.meshes[i].blended  # the blend pass adds their glow
         ]
-        if not emitters:
+        groups = [
+            g
+            for g, group in enumerate(scene.groups)
+            if any(group.material.emissive) and not group.blended
+        ]
+        if not emitters and not groups:
             return
         ctx = self.ctx
         ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)  # after the compute lighting
         ctx.enable(moderngl.DEPTH_TEST | moderngl.BLEND)
         ctx.depth_func = "<="
         ctx.blend_func = moderngl.ONE, moderngl.ONE
-        scene = frame.scene
         for eye, tgt in zip(frame.eyes, res.targets):
             tgt.forward.use()
             tgt.forward.depth_mask = False
+            for g in groups:
+                group = scene.groups[g]
+                defines = {
+                    **alpha_mask_defines(group),
+                    "HAS_EMISSIVE_MAP": "emissive_map" in (group.maps or {}),
+                    "OBJECT_TABLE": True,
+                }
+                prog = self.shaders.program(
+                    "geometry.vert.glsl",
+                    "emissive.frag.glsl",
+                    {k: v for k, v in defines.items() if v},
+                )
+                uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
+                scene.bind_group_material(prog, g)
+                scene.draw_group(scene.group_vao(prog, g), g, eye.view_projection, eye)
             for index in emitters:
                 mesh = scene.meshes[index]
                 defines = {
@@ -437,6 +490,7 @@ class ForwardPass(RenderPass):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
                 eye_ao = ao[index] if ao is not None else None
+                calls = frame.scene.draw_calls
                 frame.scene.drawn[eye.index] = _draw_meshes(
                     ctx,
                     self.shaders,
@@ -446,6 +500,7 @@ class ForwardPass(RenderPass):
                     ao=eye_ao,
                     sky=res.get("sky"),
                 )
+                frame.scene.calls[eye.index] = frame.scene.draw_calls - calls
         self.samples = int(self._samples_query.samples)
         ctx.disable(moderngl.DEPTH_TEST)
 
@@ -790,7 +845,14 @@ class ObjectIdPass(RenderPass):
         for eye, (ids, _depth, fbo) in zip(frame.eyes, self._targets):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            for index, mesh in enumerate(scene.meshes):
+            for g, group in enumerate(scene.groups):  # the mesh index comes per vertex
+                defines = {**alpha_mask_defines(group), "OBJECT_TABLE": True}
+                prog = self.shaders.program("geometry.vert.glsl", "ids.frag.glsl", defines)
+                set_uniforms(prog, {"u_view_projection": eye.view_projection})
+                scene.bind_group_material(prog, g, ("albedo",))
+                scene.draw_group(scene.group_vao(prog, g), g, eye.view_projection, eye)
+            for index in scene.standalone:
+                mesh = scene.meshes[index]
                 # Masked materials are cut out here too: a hole shows what lies behind.
                 prog = self.shaders.program(
                     "geometry.vert.glsl", "ids.frag.glsl", alpha_mask_defines(mesh)

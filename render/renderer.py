@@ -17,10 +17,13 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
+from app.ambient import AmbientProbe
+from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import Governor, apply_overrides
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
+from app.raycast import RayCaster
 from app.scene import Light, Scene
 from app.settings import Settings
 from app.sky import scene_sky, sun_light
@@ -52,8 +55,10 @@ from render.passes import (
     ObjectIdPass,
     OverlayPass,
     PresentPass,
+    deferred,
 )
 from render.photons import PhotonPass
+from render.refine import RefinePass
 from render.shaders import ShaderLibrary
 from render.shadow_mask import ShadowMaskPass
 from render.shadows import ShadowPass
@@ -81,6 +86,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     ForwardPass,
     SkyPass,
     BlendPass,
+    RefinePass,
     ExposurePass,
     PresentPass,
     ABSplitPass,
@@ -117,6 +123,7 @@ class Renderer:
     cps_mask = _Pass[CpsMaskPass]()
     emissive = _Pass[EmissivePass]()
     forward = _Pass[ForwardPass]()
+    refine = _Pass[RefinePass]()
     exposure_meter = _Pass[ExposurePass]()
     sky = _Pass[SkyPass]()
     present = _Pass[PresentPass]()
@@ -139,9 +146,15 @@ class Renderer:
         self.ids = ObjectIdPass(ctx, self.shaders, self.resources)  # on request only
         self._checked: set[tuple] = set()  # configurations whose pass list was checked
         self.gpu_scene: GpuScene | None = None
+        # Static meshes merged per material (render.gpu_scene.GpuGroup); False: one draw per
+        # mesh, as before (tests compare the two, debugging). Read by set_scene.
+        self.merge_meshes = True
         self._sun: Light | None = None
         self._sun_key: tuple | None = None
         self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
+        # The estimated ambient term for a scene and its lights, and the scene's probe.
+        self._ambient: tuple[GpuScene, tuple, float] | None = None
+        self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
@@ -156,6 +169,10 @@ class Renderer:
         # headless hosts, where "auto" means fixed settings).
         self.governor = Governor()
         self.display_hz: float | None = None
+        # The last frame dropped the refinement's mean (finer textures arrived while refining):
+        # the host restarts its session's samples (``Refinement.restart``).
+        self.refine_restarted = False
+        self._refine_dropped = False
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -170,9 +187,14 @@ class Renderer:
         self.exposure.reset()  # another room: meter it afresh
         if "exposure_meter" in self._by_name:
             self.exposure_meter.forget()
+        self._forget_refinement()
         if scene is not None:
             self.gpu_scene = GpuScene(
-                self.ctx, scene, self.settings.render.anisotropy, stream_in=stream_in
+                self.ctx,
+                scene,
+                self.settings.render.anisotropy,
+                stream_in=stream_in,
+                merge=self.merge_meshes,
             )
             self._warm_up()
 
@@ -205,7 +227,29 @@ class Renderer:
 
     def set_photons(self, photons: PhotonMap | None) -> None:
         """The photon map for the current scene (traced by the host), or None: no indirect."""
+        if photons is not self.photons.photons:  # hosts hand the same map every frame
+            self._forget_refinement()
         self.photons.set_photons(photons)
+
+    def _forget_refinement(self) -> None:
+        refine = self._by_name.get("refine")
+        if isinstance(refine, RefinePass):
+            refine.forget()
+        self._refine_dropped = True  # the next refining frame tells the host
+
+    def frame_settings(self, frame: FrameInput) -> Settings:
+        """The settings a frame is drawn with: the renderer's, or while the frame is refining
+        (``frame.refining``: the session's choice; render.refine not "off") the same with
+        full-rate shading (no CPS or masks) and the finest textures (TCR off), as
+        ``app.quality.full_quality`` has them (the photon map stays the current one)."""
+        s = self.settings
+        if not (frame.refining and str(s.render.refine) != "off"):
+            return s
+        return dataclasses.replace(
+            s,
+            cps=dataclasses.replace(s.cps, mode="none"),
+            tcr=dataclasses.replace(s.tcr, enabled=False, tint=False),
+        )
 
     def _warm_up(self) -> None:
         """Compile every shader variant now, so the first frames do not stall."""
@@ -214,12 +258,16 @@ class Renderer:
         if tcr.enabled:
             mode = "TCR_PAPER" if tcr.mode == "paper" else "TCR_CLAMP"
             modes = [{mode: True, "TCR_TINT": tcr.tint}]
+        merged = [True] if self.gpu_scene is not None and self.gpu_scene.groups else []
         for fragment in ("gbuffer.frag.glsl", "forward.frag.glsl"):
             for textured in (False, True):
                 for extra in modes:
-                    self.shaders.program(
-                        "geometry.vert.glsl", fragment, {"HAS_TEXTURE": textured, **extra}
-                    )
+                    for table in (False, *merged):
+                        self.shaders.program(
+                            "geometry.vert.glsl",
+                            fragment,
+                            {"HAS_TEXTURE": textured, "OBJECT_TABLE": table, **extra},
+                        )
         self.shaders.program("geometry.vert.glsl", "emissive.frag.glsl")
         self.shaders.compute("lighting.comp.glsl")
         for fragment in ("lighting.frag.glsl", "overlay.frag.glsl", "exposure_meter.frag.glsl"):
@@ -242,10 +290,13 @@ class Renderer:
         out: moderngl.Framebuffer,
         origin: tuple[int, int] = (0, 0),
         split: SplitFrame | None = None,
+        settings: Settings | None = None,
     ) -> FrameContext:
-        """The frame's inputs as every pass sees them."""
-        r = self.settings.render
-        s = self.settings.cps
+        """The frame's inputs as every pass sees them (``settings``: the frame's, see
+        :meth:`frame_settings`; default the renderer's)."""
+        settings = settings or self.settings
+        r = settings.render
+        s = settings.cps
         caps: list[tuple[float, float, float]] = (
             frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
         )
@@ -253,19 +304,47 @@ class Renderer:
             eyes=frame.eyes,
             scene=self.gpu_scene or self._empty,
             light_scale=1.0,  # lamps as the model gives them: Brightness is in the exposure
-            ambient=r.ambient,
+            ambient=self.ambient_term(),
             exposure=self._exposure_scale * r.exposure,
             out=out,
             out_origin=origin,
             gaze=frame.gaze,
             gaze_fixed=frame.gaze_fixed,
-            levels=frame.levels if self.settings.tcr.enabled else None,
-            tcr_mode=self.settings.tcr.mode,
-            tint=self.settings.tcr.tint,
+            levels=frame.levels if settings.tcr.enabled else None,
+            tcr_mode=settings.tcr.mode,
+            tint=settings.tcr.tint,
             cps=CpsFrame(s, caps, self.frames, list(frame.edge_hits or [])),
             edge_hits=frame.edge_hits,
             split=split,
+            refining=bool(frame.refining and str(r.refine) != "off"),
+            refine_sample=int(frame.sample),
+            refine_target=int(frame.refine_target),
         )
+
+    def ambient_term(self) -> float:
+        """The frame's ambient term: estimated from the frame's lights and the sky
+        (``app.ambient``, once per scene, set of lights and sky) with
+        ``render.ambient_estimate``, else ``render.ambient``; a
+        photon map in use brings the bounced light itself, so it keeps ``render.ambient``."""
+        r = self.settings.render
+        scene = self.gpu_scene
+        if not r.ambient_estimate or scene is None:
+            return float(r.ambient)
+        if self.photons.photons is not None and deferred(self.settings):
+            return float(r.ambient)
+        lights = self.frame_lights()
+        sky = scene_sky(self.settings.sky, scene.scene) if self.settings.sky.enabled else None
+        key = (list(lights), sky_key(sky) if sky is not None else None)
+        cached = self._ambient
+        if cached is None or cached[0] is not scene or cached[1] != key:
+            if self._ambient_probe is None or self._ambient_probe[0] is not scene:
+                own = scene.scene.ray_caster
+                caster = own if isinstance(own, RayCaster) else None
+                self._ambient_probe = (scene, AmbientProbe(scene.scene, caster))
+            sh = self.daylight.update_sky(sky).sh if sky is not None else None
+            value = self._ambient_probe[1].estimate(lights, sh).ambient
+            self._ambient = cached = (scene, key, value)
+        return cached[2]
 
     def step_exposure(self) -> None:
         """This frame's exposure: the fixed EV, or the last metering adapted by frame_dt."""
@@ -289,11 +368,12 @@ class Renderer:
         metered), for the session's TCR light term (``Session.exposure_state``)."""
         return self.exposure.base_ev, self.exposure.scene_ev
 
-    def configure(self, ctx: FrameContext) -> list[RenderPass]:
+    def configure(self, ctx: FrameContext, settings: Settings | None = None) -> list[RenderPass]:
         """Ask every pass whether it runs (its own rule) and check the enabled list's reads
         (once per configuration); the enabled passes, in order."""
+        settings = settings or self.settings
         for p in self.passes:
-            p.enabled = bool(p.configure(self.settings, ctx.scene, ctx))
+            p.enabled = bool(p.configure(settings, ctx.scene, ctx))
         enabled = [p for p in self.passes if p.enabled]
         key = tuple((p.name, p.reads, p.writes) for p in enabled)
         if key not in self._checked:
@@ -358,10 +438,23 @@ class Renderer:
         self.cps.ensure(self.targets)
         self.step_exposure()
         self._sync_lights()
-        ctx = self.frame_context(frame, out, origin, split)
-        ctx.scene.lod_bias = self.settings.render.lod_bias  # cheap: the governor moves it
+        if split is not None and frame.refining:  # the presenter shows the technique as is
+            dx, dy = frame.jitter
+            eyes = [
+                dataclasses.replace(
+                    e, projection=jittered(e.projection, (-dx, -dy), e.width, e.height)
+                )
+                for e in frame.eyes
+            ]
+            frame = dataclasses.replace(frame, eyes=eyes, refining=False, jitter=(0.0, 0.0))
+        settings = self.frame_settings(frame)
+        ctx = self.frame_context(frame, out, origin, split, settings)
+        ctx.scene.lod_bias = settings.render.lod_bias  # cheap: the governor moves it
         ctx.view_size = view
-        enabled = self.configure(ctx)
+        refine = self._by_name.get("refine")
+        # Refined: the mean is final, so the passes before the accumulation are not drawn.
+        holding = isinstance(refine, RefinePass) and refine.holding(ctx)
+        enabled = self.configure(ctx, settings)
         scene = ctx.scene
         if ctx.levels is not None and len(ctx.levels) == len(scene.meshes):
             scene.streamer.update(
@@ -372,11 +465,25 @@ class Renderer:
         else:
             ctx.levels = None
             scene.streamer.update([0] * len(scene.streamer.resident))
+        # Finer textures arrived (the window streams a large scene's textures in), or a new
+        # photon map: the mean so far was of another picture, so it starts again (the host
+        # tells its session, see ``refine_restarted``).
+        if ctx.refining and scene.streamer.uploaded_bytes > 0:
+            self._forget_refinement()
+        self.refine_restarted = bool(ctx.refining and self._refine_dropped)
+        self._refine_dropped = False  # not refining: the session starts from sample 0 anyway
+        if self.refine_restarted:
+            holding = False
+        if holding:
+            at = enabled.index(refine) if refine in enabled else 0
+            enabled = enabled[at:]
         res = self.resources
         res.begin_frame(self.targets)
         for p in self.passes:
-            if not p.enabled:
+            if not p.enabled or p not in enabled:
                 p.last_ms = 0.0
+        if holding:  # what the skipped passes made is still in the targets
+            res.wrote(tuple(name for p in self.passes if p.enabled for name in p.writes))
         for p in enabled:
             try:
                 p.run(ctx)
@@ -474,6 +581,15 @@ class Renderer:
         """Triangles the last frame's geometry pass drew per eye (after frustum culling)."""
         drawn = (self.gpu_scene or self._empty).drawn
         return [drawn.get(i, 0) for i in range(2)]
+
+    def draw_calls(self) -> list[int]:
+        """Draw calls the last frame's geometry pass (G-buffer or forward) made per eye."""
+        calls = (self.gpu_scene or self._empty).calls
+        return [calls.get(i, 0) for i in range(2)]
+
+    def frame_draw_calls(self) -> int:
+        """Draw calls for meshes so far, every pass (shadow maps, AO, ids included)."""
+        return (self.gpu_scene or self._empty).draw_calls
 
     def texture_resident_bytes(self) -> int:
         return self.gpu_scene.texture_bytes if self.gpu_scene is not None else 0

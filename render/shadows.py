@@ -454,14 +454,17 @@ class ShadowPass(RenderPass):
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
         ctx.polygon_offset = SLOPE_OFFSET
-        casters = [k for k, g in enumerate(scene.meshes) if casts(g)]
+        casters = [k for k in scene.standalone if casts(scene.meshes[k])]
+        groups = [k for k, g in enumerate(scene.groups) if casts(g)]  # merged meshes
         for vp, (x, y) in zip(views, m.tiles):
             rect = (x, y, m.size, m.size)
             fbo.viewport = rect
             fbo.clear(depth=1.0, viewport=rect)
             set_uniforms(prog, {"u_light_view_projection": vp})
+            for k in groups:
+                scene.draw_group(scene.group_vao(prog, k), k, vp)  # culled to the light's frustum
             for k in casters:
-                scene.draw(scene.vao(prog, k), k, vp)  # culled to the light's frustum
+                scene.draw(scene.vao(prog, k), k, vp)
             self.face_renders += 1
         ctx.polygon_offset = (0.0, 0.0)
         ctx.disable(moderngl.DEPTH_TEST)

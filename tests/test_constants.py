@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from importlib import resources
 
+from app import scene as scene_model
 from app.cps import MAX_LEVEL
 from render import constants, passes, photon_gather
 from render.constants import IMAGE_UNITS, SHADER_DEFINES, TEXTURE_UNITS
@@ -57,6 +58,8 @@ def test_python_names_are_the_shared_ones():
     assert photon_gather.MAX_K == constants.PM_MAX_K and photon_gather.GROUP == constants.PM_GROUP
     assert constants.CPS_LEVELS == MAX_LEVEL + 1 == len(constants.CPS_LEVEL_COLOURS)
     assert SHADER_DEFINES["CPS_LEVEL_COLOURS"].count("vec3(") == constants.CPS_LEVELS
+    assert constants.LIGHT_MIN_DIST2 == scene_model.LIGHT_MIN_DIST2 == 0.01
+    assert float(str(SHADER_DEFINES["LIGHT_MIN_DIST2"])) == constants.LIGHT_MIN_DIST2
 
 
 def test_every_sampler_and_image_has_a_unit_from_the_table():

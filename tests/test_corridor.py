@@ -179,11 +179,12 @@ def test_light_count_is_honoured(count: int) -> None:
 def test_lights_light_the_whole_corridor_evenly() -> None:
     many = irradiance_profile(make_corridor_lights(100))
     assert many.min() / many.max() > 0.75, "100 lights: an even corridor"
-    # Four ceiling lights 10 m apart leave pools of light, but their ranges overlap so that the
-    # pools merge: every point of floor and walls is within reach of at least two of them.
+    # Four ceiling lights 10 m apart leave pools of light (deep ones under the physical inverse
+    # square), but their ranges overlap so that the pools merge: every point of floor and walls
+    # is within reach of at least two of them, and none falls below a tenth of the mean.
     lights = make_corridor_lights(4)
     four = irradiance_profile(lights)
-    assert four.min() > 0.2 * many.mean()
+    assert four.min() > 0.1 * many.mean()
     ends = np.array(
         [[0.0, 0.0, -0.5], [HW, 0.0, -0.5], [0.0, 0.0, 0.5 - LENGTH], [-HW, 2.5, 0.5 - LENGTH]]
     )

@@ -16,6 +16,7 @@ from PyQt6.QtGui import QAction, QGuiApplication, QKeySequence
 from PyQt6.QtWidgets import QApplication, QLabel, QProgressDialog
 
 import ui.main_window
+import ui.scene_loading
 from app import scenes
 from app.settings import Settings
 from tests.test_gui import qimage_to_array
@@ -211,7 +212,7 @@ def test_a_slow_load_shows_the_busy_dialog_until_its_first_frame(window, qtbot, 
         time.sleep(1.5)  # a big model: reading takes a while
         return real(name, options, progress)
 
-    monkeypatch.setattr(ui.main_window.scenes, "resolve", slow)
+    monkeypatch.setattr(ui.scene_loading.scenes, "resolve", slow)
     window.keys_overlay.dismiss()
     window.load("showroom")
     dialog = window._loading.dialog
@@ -376,7 +377,7 @@ def test_a_slow_failing_load_closes_the_busy_dialog_before_the_error(window, qtb
         time.sleep(0.8)
         raise SceneLoadError(f"Cannot open '{name}': the file is damaged.")
 
-    monkeypatch.setattr(ui.main_window.scenes, "resolve", failing)
+    monkeypatch.setattr(ui.scene_loading.scenes, "resolve", failing)
     at_error: list[tuple[int, bool]] = []
     monkeypatch.setattr(
         QMessageBox,

@@ -138,6 +138,22 @@ def test_graph_of_an_empty_log_shows_the_axes_and_target_only(qtbot):
     assert not colours & {rgb(pass_colour(n)) for n in ("gbuffer", "lighting", OTHER)}
 
 
+def test_with_auto_the_line_is_the_screens_refresh(qtbot, monkeypatch):
+    w = FrameGraph(FrameLog(), Settings(), clock=lambda: 0.0, display_hz=lambda: 60.0)
+    assert w.target_ms() == pytest.approx(1000.0 / 60.0)
+    w.display_hz = lambda: None  # no screen known: the 30 fps line
+    assert w.target_ms() == pytest.approx(1000.0 / 30.0)
+    monkeypatch.setenv("VRPREVIEW_DISPLAY_HZ", "75")  # the window's view reads the screen
+    settings = Settings()
+    settings.render.overlay = False
+    win = MainWindow(settings, checker_scene())
+    qtbot.addWidget(win)
+    try:
+        assert win.frame_dock.widget().target_ms() == pytest.approx(1000.0 / 75.0)
+    finally:
+        win.close()
+
+
 def test_f3_shows_the_live_graph_of_the_window_and_hides_it_again(qtbot):
     settings = Settings()
     settings.render.overlay = False

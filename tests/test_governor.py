@@ -266,6 +266,13 @@ def test_frame_rate_panel_shows_the_budget_in_words(qtbot):
     panel.lines = broken
     panel.refresh()  # a failing source shows a line, never raises out of the timer's slot
     assert "not available" in panel.budget.text()
+    panel.lines = lambda: None  # a source that returns nothing usable: the same line
+    panel.budget.setText("")
+    qtbot.wait(600)  # the 4 Hz timer itself calls the slot (an escape would abort the process)
+    assert "not available" in panel.budget.text() and panel._warned
+    panel.lines = lambda: ["Budget 20 ms a frame (50 fps); frames take 12 ms."]
+    qtbot.waitUntil(lambda: panel.budget.text().startswith("Budget 20 ms"), timeout=2000)
+    assert panel.knobs.text() == ""
 
 
 def test_the_governors_coarse_lighting_works_without_the_users_edge_rays(host):

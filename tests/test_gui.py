@@ -133,6 +133,7 @@ def test_screenshot_and_viewpoint_are_saved(window, tmp_path):
 
 def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, qtbot):
     panel, s, session = window.tcr_panel, window.settings, window.session
+    s.render.refine = "off"  # at rest refinement shows the finest levels: TCR's own picture here
     # The quad (2 m away: level 1 by distance) fills the left eye's middle; a point inside its
     # white quadrant, beside where the gaze marker will be.
     white = (VIEW_H // 2 + 30, VIEW_W // 4 + 30)
@@ -279,6 +280,7 @@ def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, q
 
 def test_quality_panel_measures_against_full_quality_and_shows_a_heat_map(window, qtbot):
     s = window.settings
+    s.render.refine = "off"  # at rest refinement draws full quality: CPS's error is measured
     window.load("showroom")
     window.wait_for_load()
     grab(window)

@@ -78,6 +78,7 @@ def draw(host: OffscreenHost, scene: Scene, **settings) -> np.ndarray:
     for key in ("render.path", "render.lighting", "cps.mode", "render.ambient"):
         s.set(key, defaults.get(key))
     s.set("stereo.ipd_mm", 0.0)
+    s.set("render.ambient_estimate", False)  # the fixed ambient light these scenes are lit by
     # The material's colours as they are: no filmic curve desaturating a bright glow, and white
     # at 1.2 cd/m2 (EV 0), close to the old curve's.
     s.set("render.tone_mapping", "clamp")
@@ -203,7 +204,9 @@ def background_and_front(
         meshes if with_front else meshes[:1],
         [red, front],
         textures,
-        [PointLight((0.0, 1.6, -1.0), (1, 1, 1), 4.0, 30.0)],
+        # 2 lux on the front square 1.5 m away (as 4 cd at 1 m under the old 1 / (d^2 + 1)), 0.37 on
+        # the wall 3.5 m away
+        [PointLight((0.0, 1.6, -0.5), (1, 1, 1), 4.5, 30.0)],
         Viewpoint((0, 1.6, 0)),
     ).sanitized()
 

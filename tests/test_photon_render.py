@@ -172,6 +172,7 @@ def test_indirect_target_equals_the_cpu_reference(gather):
 
 def test_indirect_light_brightens_the_room_and_stays_finite():
     s = photon_settings()
+    s.render.ambient_estimate = False  # against the fixed ambient, not its estimate
     with OffscreenHost(W, H, s) as host:
         host.set_scene(box_room())
         fi = eye_frame(host)

@@ -19,7 +19,7 @@ from app.photons import (
     trace_photons,
 )
 from app.raycast import RayCaster
-from app.scene import Material, Mesh, PointLight, Scene, Texture
+from app.scene import Material, Mesh, PointLight, Scene, Texture, lamp_falloff
 
 HALF = np.array([2.0, 1.5, 2.5])  # the box is [-HALF, HALF]
 
@@ -77,8 +77,7 @@ def _first_hit_flux(light: PointLight, n: int = 400_000) -> np.ndarray:
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     dist = np.min(HALF / np.abs(d), axis=1)  # exit distance from the centre through the slabs
     d2 = dist**2
-    x = d2 / light.range_m**2
-    factor = np.clip(1 - x * x, 0, 1) ** 2 * d2 / (d2 + 1)
+    factor = lamp_falloff(d2, light.range_m) * d2  # the window and the 10 cm floor
     return 4 * np.pi * light.intensity * np.asarray(light.color) * factor.mean()
 
 

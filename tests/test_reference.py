@@ -67,6 +67,7 @@ def lit_box() -> Scene:
 def settings() -> Settings:
     s = Settings()
     s.set("render.ambient", 0.0)  # no counterpart in a path tracer: it computes the bounce
+    s.set("render.ambient_estimate", False)
     # A wide, near-converged eye pair: the left eye's off-axis shift is 3 px at 64 px, so a
     # shift with the wrong sign or unit moves the marker by 6.
     s.set("stereo.ipd_mm", 100.0)
@@ -106,8 +107,8 @@ def rendered(tmp_path_factory):
 
 
 def test_reference_is_lit_and_in_our_units(rendered):
-    """The floor under the lamp: Cycles gives the physical I / d^2 / pi, ours that times our
-    falloff d^2 / (d^2 + 1) and range window (render/shaders/shading.glsl)."""
+    """The floor under the lamp: Cycles gives the physical I / d^2 / pi, ours the same inverse
+    square times our range window (app.scene.lamp_falloff, render/shaders/shading.glsl)."""
     _scene, s, ref, ours, _cache = rendered
     hdr = ours.hdr
     assert not ref.cached
@@ -120,7 +121,8 @@ def test_reference_is_lit_and_in_our_units(rendered):
     physical = LAMP_CD / d2 / math.pi
     assert ref_l == pytest.approx(physical, rel=0.1)
     window = (1.0 - (d2 / 100.0) ** 2) ** 2
-    assert our_l == pytest.approx(ref_l * d2 / (d2 + 1.0) * window, rel=0.1)
+    assert our_l == pytest.approx(physical * window, rel=0.05)
+    assert our_l == pytest.approx(ref_l * window, rel=0.1)
 
 
 def test_camera_matches(rendered):
@@ -174,6 +176,7 @@ def test_compare_reports_each_feature_on_and_off(rendered):
     scene, _s, ref, _ours, cache = rendered
     s = settings()
     s.set("render.ambient", 0.5)  # not exported (Cycles bounces light instead): same reference
+    s.set("render.ambient_estimate", False)  # the fixed 0.5, so that "off" differs
     result = cr.compare("lit-box", scene, s, VIEW, SIZE, 8, ["ambient", "shadows"], cache)
     assert result.reference == str(ref.folder)
     rows = {r.name: r for r in result.features}
@@ -210,3 +213,65 @@ def test_sky_is_seen_and_compared_against_a_daylight_reference(rendered):
     (row,) = result.features
     assert "reference with it on" in row.label
     assert row.flip_on is not None and row.flip_off is not None
+
+
+def test_the_exported_sky_is_ours_and_its_sun_where_ours_is():
+    """The world Cycles gets is our baked sky in Blender's equirectangular layout: its
+    brightest texel (round the sun) lies along our sun's direction in Blender's axes, and the
+    sun lamp shines from the bearing our renderer gives it, the scene's own north included
+    (the showroom's 200 degrees turn it)."""
+    from app.lab.blender_scene import to_blender
+    from app.sky import scene_sky, sun_direction, sun_light
+
+    s = settings()
+    s.set("sky.enabled", True)
+    s.set("sky.time", "15:00")
+    scene = lit_box()
+    scene.north_deg = 200.0
+    img = cr.sky_image(scene, s, (256, 128))
+    h, w = img.shape[:2]
+    row, col = np.unravel_index(np.argmax(cr.luminance(img[: h // 2])), (h // 2, w))
+    # Cycles: phi = pi - 2 pi u, theta = pi v_from_top (row 0 the zenith)
+    phi, theta = math.pi - 2 * math.pi * (col + 0.5) / w, math.pi * (row + 0.5) / h
+    seen = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi)])
+    turned = scene_sky(s.sky, scene)
+    sun = to_blender(sun_direction(turned))
+    flat = sun[:2] / np.linalg.norm(sun[:2])
+    assert seen @ flat / np.linalg.norm(seen) > math.cos(math.radians(6.0))
+    (lamp,) = [light for light in cr.lights_for(scene, s) if light["kind"] == "directional"]
+    ours = sun_light(turned)
+    assert ours is not None
+    np.testing.assert_allclose(lamp["direction"], ours.direction, atol=1e-9)
+    unturned = sun_light(s)
+    assert unturned is not None and np.dot(unturned.direction, ours.direction) < 0.99
+
+
+def test_the_reference_sky_is_the_one_our_frame_shows(rendered):
+    """Above the horizon both pictures show the same sky: per channel within 10 %."""
+    scene, _s, _ref, _ours, cache = rendered
+    s = settings()
+    s.set("sky.enabled", True)
+    s.set("sky.time", "15:00")
+    view = Viewpoint((0.0, 2.0, 4.0), 0.0, 20.0)  # looking above the floor's far edge
+    day = cr.render(cr.export(scene, s, view, SIZE, samples=4), cache)
+    ours = cr.our_frames(scene, view, SIZE, {"day": s})["day"]
+    keep = cr.without_gaze_ring(SIZE)[:20]
+    ref_sky = day.radiance[:20][keep].mean(axis=0)
+    our_sky = ours.hdr[:20][keep].mean(axis=0)
+    np.testing.assert_allclose(our_sky, ref_sky, rtol=0.1)
+
+
+def test_material_maps_reach_the_export():
+    mat = Material(
+        "mapped",
+        normal_texture=0,
+        normal_scale=0.5,
+        metallic_roughness_texture=1,
+        emissive_texture=2,
+        emissive=(1.0, 1.0, 1.0),
+        alpha_mode="MASK",
+    )
+    out = cr.material_for(mat)
+    assert out["normal_texture"] == 0 and out["normal_scale"] == 0.5
+    assert out["metallic_roughness_texture"] == 1 and out["emissive_texture"] == 2
+    assert out["alpha_mode"] == "MASK" and out["alpha_cutoff"] == 0.5

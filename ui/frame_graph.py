@@ -46,10 +46,12 @@ class FrameGraph(QWidget):
         settings: Settings,
         clock: Callable[[], float] = time.perf_counter,
         parent: QWidget | None = None,
+        display_hz: Callable[[], float | None] | None = None,
     ) -> None:
         super().__init__(parent)
         self.frame_log = frame_log
         self.settings = settings
+        self.display_hz = display_hz  # the screen's refresh, for render.target_fps = auto
         self.clock = clock
         self.top_ms = 50.0  # the y axis' top, set by each paint
         self._failed = False
@@ -86,8 +88,11 @@ class FrameGraph(QWidget):
         r = self.plot_rect()
         return r.right() + seconds_ago / self.frame_log.seconds * r.width()
 
+    def target_fps(self) -> float:
+        return target_fps(self.settings, self.display_hz() if self.display_hz else None)
+
     def target_ms(self) -> float:
-        return 1000.0 / target_fps(self.settings)
+        return 1000.0 / self.target_fps()
 
     # -- painting -------------------------------------------------------------------------------
     def paintEvent(self, event) -> None:
@@ -143,7 +148,7 @@ class FrameGraph(QWidget):
         p.drawText(
             QRectF(r.left() + 4, y - fm.height() - 1, r.width() - 8, fm.height()),
             _left,
-            f"target {target:.1f} ms ({target_fps(self.settings):g} fps)",
+            f"target {target:.1f} ms ({self.target_fps():g} fps)",
         )
         p.setPen(TEXT)
         p.drawRect(r)
@@ -177,13 +182,18 @@ def _ms_text(ms: float) -> str:
     return f"{ms:.0f}" if float(ms).is_integer() else f"{ms:.1f}"
 
 
-def frame_graph_dock(window: QMainWindow, frame_log: FrameLog, settings: Settings) -> QDockWidget:
+def frame_graph_dock(
+    window: QMainWindow,
+    frame_log: FrameLog,
+    settings: Settings,
+    display_hz: Callable[[], float | None] | None = None,
+) -> QDockWidget:
     """The graph in its own dock "Frame time" at the bottom, hidden until F3 (the dock's
     toggle action, also for the View menu; a window action, so it works with the menus
-    hidden)."""
+    hidden). ``display_hz``: the view's screen refresh (the line for a target of ``auto``)."""
     dock = QDockWidget("Frame time", window)
     dock.setObjectName("frame-time-graph")
-    dock.setWidget(FrameGraph(frame_log, settings))
+    dock.setWidget(FrameGraph(frame_log, settings, display_hz=display_hz))
     window.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, dock)
     dock.hide()
     action: QAction = dock.toggleViewAction()

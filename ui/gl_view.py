@@ -20,7 +20,7 @@ from PyQt6.QtGui import QKeyEvent, QMouseEvent, QSurfaceFormat
 from PyQt6.QtOpenGLWidgets import QOpenGLWidget
 
 from app.frame_log import FrameLog
-from app.overlay_text import text_image
+from app.overlay_text import text_image, with_status
 from app.scene import Scene
 from app.session import Session
 from app.stats import FrameTimer, overlay_lines
@@ -77,6 +77,8 @@ class StereoView(QOpenGLWidget):
         self._last_tick = time.perf_counter()
         self._drag_from: QPointF | None = None
         self._text_at = 0.0
+        self.status_line: str | None = None  # the refinement line last drawn in the overlay
+        self.overlay_text: list[str] = []  # the overlay's lines as last drawn
         self.playing = False
         self._play_frame = 0
         self.recording: list = []
@@ -119,28 +121,37 @@ class StereoView(QOpenGLWidget):
         fbo = self.ctx.detect_framebuffer(self.defaultFramebufferObject())
         fbo.viewport = (0, 0, layout.view_width, layout.view_height)
         fbo.clear(0.0, 0.0, 0.0, 1.0)  # the letterbox bars
+        hz = self.display_hz()  # render.target_fps and render.refine "auto"
+        self.session.display_hz = hz
         frame = self.session.frame_input(layout.eye_width, layout.eye_height)
         self._drop_stale_heat_map(frame)
         now = time.perf_counter()
-        if now - self._text_at > 0.25:  # redraw the statistics text at 4 Hz, not every frame
+        status = self.session.refinement.status_line()  # "refining 63%" while still
+        # Redraw the statistics text at 4 Hz, not every frame (and when refinement starts/ends).
+        if now - self._text_at > 0.25 or (status is None) != (self.status_line is None):
             self._text_at = now
+            self.status_line = status
             lines = overlay_lines(
                 self.timer.fps, self.renderer.pass_ms(), self.session.settings, frame.gaze_fixed
             )
-            self.renderer.overlay.set_text_image(text_image(lines))
+            self.overlay_text = with_status(lines, status)
+            self.renderer.overlay.set_text_image(text_image(self.overlay_text))
         # Automatic exposure adapts by the last frame's wall time (the headless hosts' fixed step).
         self.renderer.frame_dt = min(0.25, self.timer.times[-1]) if self.timer.times else 1 / 60
-        self.renderer.display_hz = self.display_hz()  # render.target_fps "auto"
+        self.renderer.display_hz = hz
         if self.presenter is not None and self.presenter.active:
             self.presenter.render(self.renderer, frame, fbo, layout.gl_origin)
         else:
             self.renderer.render(frame, fbo, layout.gl_origin)
+        if self.renderer.refine_restarted:  # finer textures arrived: refine them from sample 0
+            self.session.refinement.restart()
         self.session.exposure_state = self.renderer.exposure_state()  # TCR's l reads it
         self.timer.tick(now)
         self.frame_log.record(now, self.renderer.pass_ms())
 
     def display_hz(self) -> float | None:
-        """The refresh rate of the screen showing the view, for ``render.target_fps = auto``.
+        """The refresh rate of the screen showing the view, for ``render.target_fps = auto``
+        (and ``render.refine = auto``: refinement only with a known rate).
         ``VRPREVIEW_DISPLAY_HZ`` overrides it (0: no display, fixed settings: the tests)."""
         forced = os.environ.get("VRPREVIEW_DISPLAY_HZ")
         if forced is not None:

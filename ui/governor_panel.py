@@ -49,7 +49,7 @@ class GovernorPanel(QWidget):
 
     def refresh(self) -> None:
         try:
-            lines = self.lines()
+            lines = [str(line) for line in self.lines()]
         except Exception as exc:  # noqa: BLE001 - no exception may escape a Qt slot
             if not self._warned:  # once, not four times a second
                 self._warned = True

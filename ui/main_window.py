@@ -4,20 +4,17 @@ Evaluation mode shows panels and the evaluation bar; normal mode shows only the 
 toggles while the view has the keyboard focus; elsewhere Tab moves between controls). The
 panels scroll, so the window fits a laptop screen; they sit beside or below the view (View
 menu), and the window remembers its geometry, the panels' layout, the last scene and the recent
-files (``ui.window_state``). Loading a scene runs on a worker thread behind a progress
-dialog; a file that cannot be loaded gives an error dialog and the current scene stays.
+files (``ui.window_state``). Loading a scene (``ui.scene_loading``) runs on a worker thread
+behind a progress dialog; a file that cannot be loaded gives an error dialog and the current
+scene stays. Viewpoints and recorded paths are in ``ui.viewpoints``.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
-import json
 import logging
-import os
 import sys
-import threading
 import time
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
@@ -28,27 +25,21 @@ from PyQt6.QtWidgets import (
     QDockWidget,
     QFileDialog,
     QFrame,
-    QInputDialog,
     QMainWindow,
     QMessageBox,
-    QProgressDialog,
     QScrollArea,
     QSizePolicy,
     QTabWidget,
     QWidget,
 )
 
-from app import scenes
-from app.fileio import atomic_write_bytes, atomic_write_json
+from app.fileio import atomic_write_bytes
 from app.indirect import PhotonService, wanted
-from app.loaders import SUPPORTED_EXTENSIONS, LoadOptions, SceneLoadError
 from app.paths import CameraPath
-from app.progress import LoadCancelled, Progress
-from app.scene import Scene, Viewpoint
+from app.scene import Scene
 from app.session import Session
 from app.settings import Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
-from render.texture_stream import prepare_textures
 from ui import guard, window_state
 from ui.controls import ControlsDialog
 from ui.cps_panel import CpsPanel
@@ -62,20 +53,16 @@ from ui.photon_panel import PhotonPanel
 from ui.presenter import Presenter
 from ui.quality_panel import QualityPanel
 from ui.samples_menu import fill_samples_menu
+from ui.scene_loading import SceneLoading, _Loading
 from ui.sky_panel import SkyPanel
 from ui.survey_runner import open_session_dialog
 from ui.tcr_panel import TcrPanel
+from ui.viewpoints import ViewpointActions, data_dir
 
 log = logging.getLogger(__name__)
 
 
-def data_dir() -> Path:
-    """Where screenshots, viewpoints and recordings go (VRPREVIEW_DATA overrides)."""
-    base = os.environ.get("VRPREVIEW_DATA") or Path.home() / ".local" / "share" / "vrpreview"
-    return Path(base)
-
-
-class MainWindow(QMainWindow):
+class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
     def __init__(
         self,
         settings: Settings | None = None,
@@ -145,7 +132,9 @@ class MainWindow(QMainWindow):
         # Long texts (a gazed object's name) are cut, never widen the window.
         self.eval_bar.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.statusBar().addPermanentWidget(self.eval_bar, 1)
-        self.frame_dock = frame_graph_dock(self, self.view.frame_log, self.settings)  # F3
+        self.frame_dock = frame_graph_dock(
+            self, self.view.frame_log, self.settings, self.view.display_hz
+        )  # F3
         self.log_panel = LogPanel(self)
         self.log_panel.attach()
         self.warnings_link = WarningsLink(self.log_panel.open_panel)
@@ -372,138 +361,6 @@ class MainWindow(QMainWindow):
             empty = menu.addAction("(no files opened yet)")
             empty.setEnabled(False)
 
-    # -- scenes --------------------------------------------------------------------------------
-    def open_dialog(self) -> None:
-        patterns = " ".join(f"*{e}" for e in SUPPORTED_EXTENSIONS)
-        path, _ = QFileDialog.getOpenFileName(
-            self, "Open scene", window_state.last_folder(), f"Scenes ({patterns});;All files (*)"
-        )
-        if path:
-            self.load(path)
-
-    def load(self, name_or_path: str) -> None:
-        """Load on a worker thread behind a progress dialog with Cancel (shown after 0.3 s)."""
-        if self._loading is not None:
-            return
-        dialog = QProgressDialog(f"Loading {Path(name_or_path).name}…", "Cancel", 0, 1000, self)
-        dialog.setWindowTitle("Loading scene")
-        dialog.setWindowModality(Qt.WindowModality.WindowModal)
-        dialog.setAutoClose(False)
-        dialog.setAutoReset(False)
-        dialog.setMinimumDuration(1 << 30)  # shown by _check_load once the load takes 0.3 s
-        report = _LatestProgress()
-        progress = Progress(report, threading.Event())
-        dialog.canceled.connect(progress.cancel.set)
-        options = LoadOptions.from_settings(self.settings.scene)
-        future = self._loader.submit(_load_with_session, name_or_path, options, progress)
-        self._loading = _Loading(future, name_or_path, dialog, report, progress, time.monotonic())
-        QApplication.setOverrideCursor(Qt.CursorShape.BusyCursor)  # at once, before the dialog
-        self.view.set_busy(True)
-        self._load_poll.start(30)
-
-    def cancel_load(self) -> None:
-        """Stop the load in progress (the Cancel button); the current scene stays."""
-        if self._loading is not None:
-            self._loading.progress.cancel.set()
-
-    def wait_for_load(self, timeout: float = 60.0) -> None:
-        """Block (processing events) until the current load finished (tests and scripts)."""
-        end = time.monotonic() + timeout
-        while self._loading is not None and time.monotonic() < end:
-            QApplication.processEvents()
-            time.sleep(0.01)
-        QApplication.processEvents()
-
-    def _check_load(self) -> None:
-        loading = self._loading
-        if loading is None:
-            return
-        if not loading.future.done():
-            if loading.dialog.wasCanceled():
-                loading.progress.cancel.set()
-            fraction, text = loading.report.latest
-            if time.monotonic() - loading.started > _SHOW_PROGRESS_AFTER_S:
-                if not loading.dialog.isVisible() and not loading.progress.cancel.is_set():
-                    loading.dialog.show()
-                loading.dialog.setLabelText(
-                    f"Loading {Path(loading.name).name}…\n{text}"
-                    if not loading.progress.cancel.is_set()
-                    else "Cancelling…"
-                )
-                loading.dialog.setValue(int(1000 * fraction))
-            return
-        self._loading = None
-        self._load_poll.stop()
-        try:
-            self._finish_load(loading)
-        finally:
-            self._end_busy(loading)
-
-    def _end_busy(self, loading: _Loading) -> None:
-        """The dialog goes and the cursor comes back, once per load."""
-        if loading.ended:
-            return
-        loading.ended = True
-        loading.dialog.reset()
-        loading.dialog.hide()
-        loading.dialog.deleteLater()
-        QApplication.restoreOverrideCursor()
-        self.view.set_busy(False)
-
-    def _finish_load(self, loading: _Loading) -> None:
-        """The worker is done: show the scene (or the error). The upload to the graphics card
-        and the first frame run here on the UI thread, so the dialog stays up through them: a
-        load is busy until its first frame is on screen."""
-        name = loading.name
-        try:
-            failed = loading.future.exception() is not None
-        except concurrent.futures.CancelledError:
-            failed = True
-        if failed:
-            self._end_busy(loading)  # the dialog goes before any message box
-        try:
-            scene, session_path = loading.future.result()
-        except LoadCancelled:
-            self.statusBar().showMessage(f"Loading {Path(name).name} cancelled", 8000)
-            return
-        except (SceneLoadError, OSError, ValueError) as exc:
-            if Path(name).suffix and not Path(name).is_file():
-                window_state.forget_recent(name)  # gone: no longer offered in File > Recent
-            self.show_error("Cannot open scene", str(exc))
-            return
-        except Exception as exc:  # noqa: BLE001 - any loader bug: report it, keep running
-            log.exception("loading %s failed", name)
-            self.show_error("Cannot open scene", f"{name}: unexpected error: {exc}")
-            return
-        dialog = loading.dialog
-        if dialog.isVisible() or time.monotonic() - loading.started > _SHOW_PROGRESS_AFTER_S:
-            dialog.setLabelText(f"Showing {Path(name).name}…")
-            dialog.setValue(dialog.maximum())
-            dialog.setCancelButton(None)  # too late to cancel: the scene is ready
-            dialog.show()
-            dialog.repaint()  # painted now: the UI thread is busy until the first frame
-        self.session.set_scene(scene, session_path)
-        self.view.set_scene(scene)
-        window_state.remember_opened(name)
-        self._refresh_recent()
-        # Upload and draw the first frame now, under the dialog: grabFramebuffer() always renders
-        # (repaint() may be deferred by Qt until after the dialog has gone).
-        self.view.grabFramebuffer()
-        self._update_title()
-        self._refresh_viewpoints()
-        note = f"Loaded {scene.name}: {scene.triangle_count:,} triangles"
-        if scene.warnings:
-            note += f" ({len(scene.warnings)} warnings: View > Log and warnings, Ctrl+L)"
-            for w in scene.warnings:
-                log.warning("%s: %s", scene.name, w)
-        self._note_warnings(scene)
-        self.statusBar().showMessage(note, 8000)
-
-    def _note_warnings(self, scene: Scene) -> None:
-        """The scene's load warnings go to the log panel and the status bar's link."""
-        self.log_panel.set_scene_warnings(scene.name, scene.warnings)
-        self.warnings_link.set_count(len(scene.warnings))
-
     def show_error(self, title: str, text: str) -> None:
         QMessageBox.critical(self, title, text)
 
@@ -651,82 +508,6 @@ class MainWindow(QMainWindow):
             stats["trace_ms"] = self.photon_cache.trace_ms
         return stats
 
-    # -- viewpoints and paths ------------------------------------------------------------------
-    def _viewpoints_file(self) -> Path:
-        return data_dir() / "viewpoints.json"
-
-    def _read_viewpoints(self) -> dict:
-        try:
-            doc = json.loads(self._viewpoints_file().read_text(encoding="utf-8"))
-            return doc if isinstance(doc, dict) else {}
-        except (OSError, json.JSONDecodeError):
-            return {}
-
-    def save_viewpoint(self, name: str | None = None) -> None:
-        scene = self.session.scene
-        if scene is None:
-            return
-        all_vp = self._read_viewpoints()
-        mine = all_vp.setdefault(scene.name, {})
-        if not name:
-            name, ok = QInputDialog.getText(
-                self, "Save viewpoint", "Name:", text=f"Viewpoint {len(mine) + 1}"
-            )
-            if not ok or not name:
-                return
-        w = self.session.walker
-        mine[name] = {
-            "position": [float(v) for v in w.position],
-            "yaw_deg": w.yaw_deg,
-            "pitch_deg": w.pitch_deg,
-        }
-        atomic_write_json(self._viewpoints_file(), all_vp)
-        self._refresh_viewpoints()
-        self.statusBar().showMessage(f"Viewpoint '{name}' saved", 5000)
-
-    def _refresh_viewpoints(self) -> None:
-        menu = self.viewpoint_menu
-        for a in menu.actions()[2:]:
-            menu.removeAction(a)
-        scene = self.session.scene
-        if scene is None:
-            return
-        for name, vp in self._read_viewpoints().get(scene.name, {}).items():
-            a = QAction(name, self)
-            a.triggered.connect(
-                lambda _=False, v=vp: self.go_to(
-                    Viewpoint(tuple(v["position"]), v.get("yaw_deg", 0.0), v.get("pitch_deg", 0.0))
-                )
-            )
-            menu.addAction(a)
-
-    def go_to(self, vp: Viewpoint) -> None:
-        self.view.playing = False
-        self.session.walker.place(vp.position, vp.yaw_deg, vp.pitch_deg)
-
-    def toggle_play(self) -> None:
-        self.view.playing = not self.view.playing
-
-    def toggle_recording(self) -> None:
-        view = self.view
-        if not view.is_recording:
-            view.recording = []
-            view.is_recording = True
-            self.statusBar().showMessage("Recording path… (Ctrl+R stops)")
-            return
-        view.is_recording = False
-        keys = view.recording
-        if len(keys) < 2:
-            return
-        t0 = keys[0].t
-        for k in keys:
-            k.t -= t0
-        name = time.strftime("path-%Y%m%d-%H%M%S.json")
-        target = data_dir() / "paths" / name
-        scene = self.session.scene
-        CameraPath(keys, scene.name if scene else "").save(target)
-        self.statusBar().showMessage(f"Path saved: {target} (replay: --path {target})", 10000)
-
     # -- statistics ----------------------------------------------------------------------------
     def _poll(self) -> dict:
         s = self.session
@@ -755,40 +536,6 @@ class MainWindow(QMainWindow):
         self._loader.shutdown(wait=False, cancel_futures=True)
         self.photon_cache.close()
         super().closeEvent(event)
-
-
-_SHOW_PROGRESS_AFTER_S = 0.3
-
-
-class _LatestProgress:
-    """The load's last report, written by the worker and read by the UI thread's poll (one
-    tuple assignment: atomic under the GIL)."""
-
-    def __init__(self) -> None:
-        self.latest: tuple[float, str] = (0.0, "")
-
-    def __call__(self, fraction: float, text: str) -> None:
-        self.latest = (fraction, text)
-
-
-@dataclass
-class _Loading:
-    future: concurrent.futures.Future
-    name: str
-    dialog: QProgressDialog
-    report: _LatestProgress
-    progress: Progress
-    started: float
-    ended: bool = False  # the dialog and the busy cursor are gone
-
-
-def _load_with_session(
-    name: str, options: LoadOptions, progress: Progress
-) -> tuple[Scene, CameraPath]:
-    scene = scenes.resolve(name, options, progress.span(0.0, 0.85))
-    # Texture pyramids are CPU work: built here, so the UI thread only uploads them.
-    prepare_textures(scene.textures, progress.span(0.85, 1.0))
-    return scene, scenes.default_path(scene)
 
 
 def app_icon() -> QIcon:

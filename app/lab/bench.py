@@ -31,7 +31,7 @@ from app.lab.results import (
 )
 from app.loaders import LoadOptions
 from app.overlay_text import text_image
-from app.paths import FIXED_DT, CameraPath
+from app.paths import FIXED_DT, SHOWROOM_STOP, SHOWROOM_STOP_AT_S, CameraPath
 from app.progress import Progress as LoadProgress
 from app.quality import FrameErrors
 from app.session import Session
@@ -223,11 +223,14 @@ def bench(
     compared: list[tuple[int, FrameErrors]] = []  # (state, figures) per compared frame
     photon_frames: list[dict] = []
     drawn: list[list[int]] = []  # triangles drawn per eye, per frame
+    calls: list[list[int]] = []  # the geometry pass's draw calls per eye, per frame
+    frame_calls: list[int] = []  # draw calls for meshes per frame, every pass
     try:
         host.set_text_image(None)
         for i in range(-warmup, total):
             session.apply_path_frame(max(i, 0) * stride % session.path.frame_count())
             frame = session.frame_input(*host.eye_size)
+            calls_before = host.renderer.frame_draw_calls()
             t0 = time.perf_counter()
             host.render_only(frame)
             dt = (time.perf_counter() - t0) * 1000.0
@@ -242,6 +245,8 @@ def bench(
                     photon_frames.append(host.renderer.photon_stats())
             resident.append(host.renderer.texture_resident_bytes())
             drawn.append(host.renderer.triangles_drawn())
+            calls.append(host.renderer.draw_calls())
+            frame_calls.append(host.renderer.frame_draw_calls() - calls_before)
             gazed = session.gazed
             distance = (
                 float(session.tcr.distances[gazed])
@@ -278,9 +283,16 @@ def bench(
             per_frame.append(record)
             if progress:
                 progress(i + 1, total)
+        refine = (
+            refine_after_still(host, session, settings, ppd)
+            if getattr(session.path, "name", "") == SHOWROOM_STOP
+            else None
+        )
         errors = host.renderer.errors
         budget = _frame_budget(frame_ms, settings, host.renderer.governor)
         shadows = host.renderer.shadows.stats()  # shadow_memory_bytes: the maps' GPU memory
+        gpu_scene = host.renderer.gpu_scene
+        merged_groups = len(gpu_scene.groups) if gpu_scene is not None else 0
         device = host.ctx.info.get("GL_RENDERER", "")
         trace_ms = host.photon_cache.trace_ms
     finally:
@@ -325,8 +337,13 @@ def bench(
         shadows=shadows,
         geometry={
             "triangles_drawn": [int(np.median(col)) for col in zip(*drawn)] if drawn else [],
+            "draw_calls": [int(np.median(col)) for col in zip(*calls)] if calls else [],
+            "draw_calls_frame": int(np.median(frame_calls)) if frame_calls else 0,
+            "meshes": len(scene.meshes),
+            "merged_groups": merged_groups,
         },
         frame_budget=budget,
+        refine=refine,
     )
 
 
@@ -342,6 +359,70 @@ def _frame_budget(ms: list[float], settings: Settings, governor: Governor) -> Fr
     if fps <= 0:
         return None
     return FrameBudget.of(ms, fps, governor.summary())
+
+
+REFINE_MARKS_S = (0.5, 1.0, 2.0, 5.0)
+REFINE_REFERENCE_SAMPLES = 256
+
+
+def refine_after_still(
+    host, session: Session, settings: Settings, ppd: float, stop_s: float = SHOWROOM_STOP_AT_S
+) -> dict:
+    """The refinement after the path stops (``showroom_stop``): FLIP of the displayed frame
+    at 0.5, 1, 2 and 5 s of path time after the stop against the converged full-quality
+    frame (the same pose, accumulated over REFINE_REFERENCE_SAMPLES jittered samples at full
+    quality with the current photon map), and the wall-clock seconds those frames took."""
+    r = settings.render
+    target, mode = r.refine_samples, r.refine
+    # Headless, "auto" does not refine: this path measures the refinement, so it is on here
+    # (an explicit "off" stays off: the picture without refinement, for comparison).
+    r.refine = "off" if mode == "off" else "on"
+    try:
+        return _refine_after_still(host, session, settings, ppd, stop_s)
+    finally:
+        r.refine_samples, r.refine = target, mode
+
+
+def _refine_after_still(
+    host, session: Session, settings: Settings, ppd: float, stop_s: float
+) -> dict:
+    from app.refine import needed
+
+    assert session.path is not None
+    stop = round(stop_s / FIXED_DT)
+    marks = {round((stop_s + m) / FIXED_DT): m for m in REFINE_MARKS_S}
+    last = min(max(marks), session.path.frame_count() - 1)
+    session.apply_path_frame(max(0, stop - 1))  # walking into the stop (not timed)
+    host.render_only(session.frame_input(*host.eye_size))
+    shown: dict[float, np.ndarray] = {}
+    wall: dict[float, float] = {}
+    elapsed = 0.0
+    for n in range(stop, last + 1):
+        session.apply_path_frame(n)
+        frame = session.frame_input(*host.eye_size)
+        t0 = time.perf_counter()
+        host.render_only(frame)
+        elapsed += time.perf_counter() - t0
+        if n in marks:
+            shown[marks[n]] = host.read_pixels()
+            wall[marks[n]] = elapsed
+    r = settings.render
+    target, was_on = r.refine_samples, r.refine
+    r.refine, r.refine_samples = "on", REFINE_REFERENCE_SAMPLES
+    session.refinement.reset()
+    session.tick(0.0)
+    for _ in range(needed(REFINE_REFERENCE_SAMPLES) + 2):
+        host.render_only(session.frame_input(*host.eye_size))
+    reference = host.read_pixels()
+    return {
+        "flip_after_still_s": {
+            f"{m:g}": metrics.flip(reference, img, ppd) for m, img in shown.items()
+        },
+        "wall_s_after_still_s": {f"{m:g}": s for m, s in wall.items()},
+        "reference_samples": REFINE_REFERENCE_SAMPLES,
+        "refine_samples": target,
+        "refine_on": was_on == "on",
+    }
 
 
 def _error_summary(compared: list[tuple[int, FrameErrors]], ppd: float) -> ErrorVsFullQuality:

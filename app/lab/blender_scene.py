@@ -92,45 +92,137 @@ def build_mesh(bpy, arrays, job: dict):
     return ob
 
 
+def _image(bpy, job: dict, index: int, data: bool):
+    """Texture ``index`` as a Blender image: sRGB colour, or linear data (normal and
+    metallic-roughness maps), one image per texture and colour space."""
+    cache = job.setdefault("_images", {})
+    key = (index, data)
+    if key not in cache:
+        # a new datablock per load (check_existing off): a texture used both ways gets two
+        image = bpy.data.images.load(str(Path(job["dir"]) / f"tex_{index}.png"))
+        image.colorspace_settings.name = "Non-Color" if data else "sRGB"
+        cache[key] = image
+    return cache[key]
+
+
+def _texture_node(bpy, tree, job: dict, index: int, data: bool = False):
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = _image(bpy, job, index, data)
+    tex.interpolation = "Linear"
+    tex.extension = "REPEAT" if job["textures"][index]["repeat"] else "EXTEND"
+    return tex
+
+
+def _multiply(tree, a, b):
+    node = tree.nodes.new("ShaderNodeMix")
+    node.data_type = "RGBA"
+    node.blend_type = "MULTIPLY"
+    node.inputs["Factor"].default_value = 1.0
+    tree.links.new(a, node.inputs["A"])
+    if isinstance(b, tuple):
+        node.inputs["B"].default_value = b
+    else:
+        tree.links.new(b, node.inputs["B"])
+    return node.outputs["Result"]
+
+
+def _scaled(tree, value, factor: float):
+    node = tree.nodes.new("ShaderNodeMath")
+    node.operation = "MULTIPLY"
+    tree.links.new(value, node.inputs[0])
+    node.inputs[1].default_value = float(factor)
+    return node.outputs["Value"]
+
+
 def build_material(bpy, m: dict, job: dict):
-    """Principled BSDF: base colour x texture (sRGB) x vertex colour, roughness, metallic,
-    emission in cd/m2 (strength 1), alpha from the base colour."""
+    """Principled BSDF with glTF's meaning: base colour x texture (sRGB) x vertex colour;
+    roughness and metallic times the metallic-roughness map's G and B; a tangent-space normal
+    map (uv map "uv", glTF's +Y up, Blender's too) at ``normal_scale``; emission in cd/m2
+    (strength 1) times the emissive map; alpha from the base colour (x the texture's alpha),
+    cut at ``alpha_cutoff`` for MASK, opaque for OPAQUE."""
     mat = bpy.data.materials.new(m["name"] or "material")
     mat.use_nodes = True  # (deprecated in Blender 5, where it is on already)
     tree = mat.node_tree
     bsdf = tree.nodes["Principled BSDF"]
     base = m["base_color"]
-    colour = tree.nodes.new("ShaderNodeMix")
-    colour.data_type = "RGBA"
-    colour.blend_type = "MULTIPLY"
-    colour.inputs["Factor"].default_value = 1.0
     vc = tree.nodes.new("ShaderNodeVertexColor")
     vc.layer_name = "col"
-    tree.links.new(vc.outputs["Color"], colour.inputs["A"])
-    tint = colour
+    colour = _multiply(tree, vc.outputs["Color"], (base[0], base[1], base[2], 1.0))
+    alpha = None
     if m["texture"] is not None:
-        image = bpy.data.images.load(str(Path(job["dir"]) / f"tex_{m['texture']}.png"))
-        image.colorspace_settings.name = "sRGB"
-        tex = tree.nodes.new("ShaderNodeTexImage")
-        tex.image = image
-        tex.interpolation = "Linear"
-        tex.extension = "REPEAT" if job["textures"][m["texture"]]["repeat"] else "EXTEND"
-        tint = tree.nodes.new("ShaderNodeMix")
-        tint.data_type = "RGBA"
-        tint.blend_type = "MULTIPLY"
-        tint.inputs["Factor"].default_value = 1.0
-        tree.links.new(colour.outputs["Result"], tint.inputs["A"])
-        tree.links.new(tex.outputs["Color"], tint.inputs["B"])
-    colour.inputs["B"].default_value = (base[0], base[1], base[2], 1.0)
-    tree.links.new(tint.outputs["Result"], bsdf.inputs["Base Color"])
-    bsdf.inputs["Roughness"].default_value = float(m["roughness"])
-    bsdf.inputs["Metallic"].default_value = float(m["metallic"])
-    bsdf.inputs["Alpha"].default_value = float(base[3])
+        tex = _texture_node(bpy, tree, job, m["texture"])
+        colour = _multiply(tree, colour, tex.outputs["Color"])
+        alpha = _scaled(tree, tex.outputs["Alpha"], base[3])
+    tree.links.new(colour, bsdf.inputs["Base Color"])
+    mr = m.get("metallic_roughness_texture")
+    if mr is not None:
+        tex = _texture_node(bpy, tree, job, mr, data=True)
+        split = tree.nodes.new("ShaderNodeSeparateColor")
+        tree.links.new(tex.outputs["Color"], split.inputs["Color"])
+        tree.links.new(
+            _scaled(tree, split.outputs["Green"], m["roughness"]), bsdf.inputs["Roughness"]
+        )
+        tree.links.new(_scaled(tree, split.outputs["Blue"], m["metallic"]), bsdf.inputs["Metallic"])
+    else:
+        bsdf.inputs["Roughness"].default_value = float(m["roughness"])
+        bsdf.inputs["Metallic"].default_value = float(m["metallic"])
+    nt = m.get("normal_texture")
+    if nt is not None:
+        tex = _texture_node(bpy, tree, job, nt, data=True)
+        normal = tree.nodes.new("ShaderNodeNormalMap")
+        normal.space = "TANGENT"
+        normal.uv_map = "uv"
+        normal.inputs["Strength"].default_value = float(m.get("normal_scale", 1.0))
+        tree.links.new(tex.outputs["Color"], normal.inputs["Color"])
+        tree.links.new(normal.outputs["Normal"], bsdf.inputs["Normal"])
+    mode = m.get("alpha_mode", "OPAQUE")
+    if mode == "OPAQUE":
+        bsdf.inputs["Alpha"].default_value = 1.0
+    elif alpha is None:
+        bsdf.inputs["Alpha"].default_value = float(base[3])
+    elif mode == "MASK":
+        cut = tree.nodes.new("ShaderNodeMath")
+        cut.operation = "GREATER_THAN"
+        tree.links.new(alpha, cut.inputs[0])
+        cut.inputs[1].default_value = float(m.get("alpha_cutoff", 0.5))
+        tree.links.new(cut.outputs["Value"], bsdf.inputs["Alpha"])
+    else:
+        tree.links.new(alpha, bsdf.inputs["Alpha"])
     emissive = m["emissive"]
     if max(emissive) > 0.0:
-        bsdf.inputs["Emission Color"].default_value = (*emissive, 1.0)
+        glow = (*emissive, 1.0)
+        et = m.get("emissive_texture")
+        if et is not None:
+            tex = _texture_node(bpy, tree, job, et)
+            tree.links.new(
+                _multiply(tree, tex.outputs["Color"], glow), bsdf.inputs["Emission Color"]
+            )
+        else:
+            bsdf.inputs["Emission Color"].default_value = glow
         bsdf.inputs["Emission Strength"].default_value = 1.0
+    if m.get("shadowless"):
+        _let_light_through(tree, bsdf, sky=bool(job.get("sky")))
     return mat
+
+
+def _let_light_through(tree, bsdf, sky: bool) -> None:
+    """A surface that casts no shadow in our renderer (render/shadows.py ``casts``: a glowing
+    pane showing the sky, a lamp's shade or bulb): shadow rays pass it, so lamps shine through
+    their shades; with daylight on, every ray but the camera's (the sky beyond the pane lights
+    the room through it, and the pane is what the camera sees, as in our frame)."""
+    path = tree.nodes.new("ShaderNodeLightPath")
+    clear = tree.nodes.new("ShaderNodeBsdfTransparent")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    if sky:
+        tree.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+        tree.links.new(clear.outputs["BSDF"], mix.inputs[1])
+        tree.links.new(bsdf.outputs["BSDF"], mix.inputs[2])
+    else:
+        tree.links.new(path.outputs["Is Shadow Ray"], mix.inputs["Fac"])
+        tree.links.new(bsdf.outputs["BSDF"], mix.inputs[1])
+        tree.links.new(clear.outputs["BSDF"], mix.inputs[2])
+    out = tree.nodes["Material Output"]
+    tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
 
 
 def build_lights(bpy, job: dict) -> None:
@@ -139,7 +231,7 @@ def build_lights(bpy, job: dict) -> None:
         if kind == "directional":
             data = bpy.data.lights.new(f"sun{i}", "SUN")
             data.energy = light["sun_strength"]
-            data.angle = math.radians(0.53)  # the sun's disc
+            data.angle = math.radians(2.0 * 0.266)  # the sun's disc (app.sky_model)
             shine = to_blender(np.asarray(light["direction"]))
             location = np.zeros(3)
         else:
@@ -159,7 +251,7 @@ def build_lights(bpy, job: dict) -> None:
         bpy.context.scene.collection.objects.link(ob)
 
 
-def build_world(bpy, job: dict) -> None:
+def build_world(bpy, job: dict, arrays) -> None:
     world = bpy.data.worlds.new("world")
     world.use_nodes = True  # off on a new world, even in Blender 5.0
     bpy.context.scene.world = world
@@ -168,12 +260,19 @@ def build_world(bpy, job: dict) -> None:
     if not sky:
         background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         return
-    node = world.node_tree.nodes.new("ShaderNodeTexSky")
-    sun = to_blender(np.asarray(sky["sun_direction"]))
-    node.sun_elevation = math.asin(max(-1.0, min(1.0, float(sun[2]))))
-    # Blender's rotation: 0 looks along +Y, counter-clockwise from above.
-    node.sun_rotation = math.atan2(-float(sun[0]), float(sun[1]))
-    node.sun_disc = False  # the sun is the sun lamp (its lux); the sky is only the sky
+    # Our own sky (app/lab/cycles_reference.py sky_image), already in the Environment
+    # Texture's layout: Blender's rows run bottom-up, so the image goes in flipped.
+    sky_rgb = np.asarray(arrays[sky["image"]], np.float32)
+    height, width = sky_rgb.shape[:2]
+    image = bpy.data.images.new("sky", width, height, alpha=False, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"  # linear cd/m2 as they are
+    rgba = np.concatenate([sky_rgb, np.ones((height, width, 1), np.float32)], axis=2)
+    image.pixels.foreach_set(np.ascontiguousarray(np.flipud(rgba)).ravel())
+    image.update()
+    node = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    node.image = image
+    node.interpolation = "Linear"
+    node.projection = "EQUIRECTANGULAR"
     world.node_tree.links.new(node.outputs["Color"], background.inputs["Color"])
     background.inputs["Strength"].default_value = float(sky["strength"])
 
@@ -214,8 +313,8 @@ def render(job_dir: Path) -> None:
     with np.load(job_dir / "meshes.npz") as arrays:
         if arrays["indices"].shape[0]:
             build_mesh(bpy, arrays, job)
+        build_world(bpy, job, arrays)
     build_lights(bpy, job)
-    build_world(bpy, job)
     build_camera(bpy, job)
     width, height = job["size"]
     r = scene.render

@@ -49,7 +49,7 @@ def _common(
     p.add_argument(
         "--path",
         help="camera+gaze path (JSON file, or a built-in: "
-        "showroom_walkthrough, tcr_cube_distance, tcr_cube_orbit, "
+        "showroom_walkthrough, showroom_stop, tcr_cube_distance, tcr_cube_orbit, "
         "tcr_cube_gaze) instead of the scene's default",
     )
 
@@ -103,7 +103,10 @@ def build_parser() -> argparse.ArgumentParser:
         "quality; results.json/.csv, report.md, pareto.png",
     )
     st.add_argument(
-        "which", choices=("cps", "tcr", "photons"), help="cps: corridor; tcr and photons: showroom"
+        "which",
+        choices=("cps", "tcr", "photons", "governor"),
+        help="cps: corridor; tcr and photons: showroom; governor: its error table "
+        "(governor_errors.json) and the governor against fixed presets at equal frame time",
     )
     st.add_argument("--out", default=None, help="folder (out/study-WHICH); resumes if present")
     st.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
@@ -243,7 +246,12 @@ def _run(
 
         out = args.out or f"out/study-{args.which}"
         with RunProgress() as progress:
-            rows = run_study(args.which, out, args.size, progress)
+            if args.which == "governor":
+                from app.lab.governor_study import run_governor_study
+
+                rows = run_governor_study(out, args.size, progress)
+            else:
+                rows = run_study(args.which, out, args.size, progress)
         print(f"{len(rows)} runs; results.json, results.csv, report.md and pareto.png in {out}/")
         return 0
     if args.command == "report":

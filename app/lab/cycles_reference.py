@@ -16,12 +16,12 @@ Units (checked by tests/test_reference.py, a white floor under a 1 cd lamp):
   leave photometric units: a radiometric export would be ``4 pi I / 683`` W and every pixel
   683 times smaller). A spot is the same lamp with Blender's cone (Blender spots do not
   concentrate their power), a sun of E lux has strength E.
-- Our lamps fall off as 1 / (d^2 + 1) times a smooth window that reaches 0 at ``range_m``
-  (render/shaders/shading.glsl); Cycles' as 1 / d^2 with no range: at 1 m ours is half as
-  bright, at 3 m 0.9 of it. The reference is the physical one; the difference is one of the
-  things FLIP measures.
-- ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` has no
-  counterpart: Cycles computes the light bounced off walls instead.
+- Our lamps fall off as the physical 1 / d^2 (floored at 10 cm, ``app.scene.lamp_falloff``)
+  times a smooth window that reaches 0 at ``range_m`` (render/shaders/shading.glsl); Cycles'
+  as 1 / d^2 with no range: the same up to the window (0.98 of it at a third of the range).
+- ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` and
+  ``render.ambient_estimate`` (app/ambient.py) have no counterpart: Cycles computes the light
+  bounced off walls instead, which the estimate approximates.
 
 Display transform: both images go through our present pass (render/shaders/present.frag.glsl):
 ``srgb_encode(aces(radiance * render.exposure))``, :func:`present` here in numpy on the linear
@@ -52,14 +52,12 @@ import numpy as np
 from app import metrics
 from app.camera import StereoCamera, orientation
 from app.fileio import atomic_write_json, atomic_write_png
-from app.scene import Scene, Viewpoint
+from app.scene import Material, Scene, Viewpoint
 from app.settings import Settings, SettingsError
 
 log = logging.getLogger(__name__)
 
 WORKER = Path(__file__).with_name("blender_scene.py")
-# Blender's sky texture with strength 1 is radiance in W/m2/sr; as luminance in cd/m2.
-SKY_LM_PER_W = 683.0
 
 
 class CyclesError(RuntimeError):
@@ -169,19 +167,29 @@ def eye_camera(settings: Settings, view: Viewpoint, size: tuple[int, int]) -> di
 
 
 # -- the export ------------------------------------------------------------------------------------
+def scene_sky_settings(scene: Scene, settings: Settings) -> Any:
+    """The ``sky.*`` settings as the renderer applies them to ``scene``: turned by the scene's
+    own north (``app.sky.scene_sky``, the showroom's 200 degrees) as well as ``sky.north_deg``.
+    (The export once placed the sun by ``sky.north_deg`` alone, so the showroom's sun came in
+    from a mirrored bearing.)"""
+    from app.sky import scene_sky
+
+    return scene_sky(settings.sky, scene)
+
+
 def lights_for(scene: Scene, settings: Settings) -> list[dict[str, Any]]:
     """Our lamps in Blender's terms (see the module's units); brightness applied. With
-    ``sky.enabled`` and no sun in the scene, the sun of ``app.sky.sun_light`` where this build
-    has it (the daylight branch), in lux."""
+    ``sky.enabled``, the sun of ``app.sky.sun_light`` (in lux) as the renderer adds it to the
+    frame's lights (render.renderer ``frame_lights``), for the scene's north."""
     scale = settings.render.brightness if brightness_dims_lamps(settings) else 1.0
     out = []
     lights = list(scene.lights)
-    sun_light = getattr(importlib.import_module("app.sky"), "sun_light", None)
-    if settings.sky.enabled and sun_light is not None:
-        if not any(light.kind == "directional" for light in lights):
-            sun = sun_light(settings)
-            if sun is not None:
-                lights.append(sun)
+    if settings.sky.enabled:
+        from app.sky import sun_light
+
+        sun = sun_light(scene_sky_settings(scene, settings))
+        if sun is not None:
+            lights.append(sun)
     for light in lights:
         intensity = float(light.intensity) * scale
         if intensity <= 0.0:
@@ -201,16 +209,53 @@ def lights_for(scene: Scene, settings: Settings) -> list[dict[str, Any]]:
     return out
 
 
-def sky_for(settings: Settings) -> dict[str, Any] | None:
+SKY_EXPORT_SIZE = (512, 256)  # the exported sky's equirectangular texels
+
+
+def sky_for(scene: Scene, settings: Settings) -> dict[str, Any] | None:
+    """The world Cycles gets with ``sky.enabled``: our own sky, not Blender's sky model (whose
+    colours and brightness are another model's), as an equirectangular image of cd/m2 in
+    Blender's layout (:func:`sky_image`) with strength 1 (the lamps' brightness scale where
+    brightness dims the lamps)."""
     if not settings.sky.enabled:
         return None
     from app.sky import sun_direction
 
+    sky = scene_sky_settings(scene, settings)
+    scale = settings.render.brightness if brightness_dims_lamps(settings) else 1.0
     return {
-        "sun_direction": [float(v) for v in sun_direction(settings.sky)],
-        "strength": SKY_LM_PER_W * settings.render.brightness,
-        "when": f"{settings.sky.date} {settings.sky.time}",
+        "sun_direction": [float(v) for v in sun_direction(sky)],
+        "strength": float(scale),
+        "when": f"{sky.date} {sky.time}",
+        "north_deg": float(sky.north_deg),
+        "image": "sky",  # meshes.npz's "sky" array
     }
+
+
+def sky_image(scene: Scene, settings: Settings, size: tuple[int, int] = SKY_EXPORT_SIZE):
+    """Our baked sky (``app.sky.bake_sky``: Preetham and the ground, or the user's panorama),
+    resampled into the layout of Blender's Environment Texture (Cycles'
+    ``direction_to_equirectangular``: row 0 the zenith as ours, the middle column looking along
+    Blender's +X, longitude growing clockwise seen from above), (H, W, 3) float32 cd/m2, row 0
+    at the top. The rows are the same polar angles as ours, so only the columns move."""
+    from app.sky import bake_sky, north_east
+
+    sky = scene_sky_settings(scene, settings)
+    width, height = size
+    ours = bake_sky(sky, (width, height)).image.astype(np.float64)
+    north, east = north_east(sky.north_deg)
+    # Blender's column j looks along phi = pi - 2 pi u (u = (j + 0.5) / W) in its axes:
+    # (cos phi, sin phi, 0) there, (cos phi, 0, -sin phi) in ours (Blender (x, y, z) = ours
+    # (x, -z, y)).
+    u = (np.arange(width) + 0.5) / width
+    phi = math.pi - 2.0 * math.pi * u
+    horizontal = np.stack([np.cos(phi), np.zeros(width), -np.sin(phi)], axis=1)
+    compass = np.arctan2(horizontal @ east, horizontal @ north)  # ours: 0 north, +90 east
+    x = (compass / (2.0 * math.pi) + 0.5) * width - 0.5  # our column, fractional
+    lo = np.floor(x).astype(int)
+    t = (x - lo)[None, :, None]
+    left, right = ours[:, lo % width], ours[:, (lo + 1) % width]
+    return ((1.0 - t) * left + t * right).astype(np.float32)
 
 
 def merged_arrays(scene: Scene) -> dict[str, np.ndarray]:
@@ -268,20 +313,44 @@ class ReferenceJob:
         return d
 
     def digest(self, version: str | None) -> str:
-        """A content hash of geometry, materials, textures, lights, sky, view, size, samples
-        and the bpy version (the display's exposure is not in it: it is applied afterwards)."""
+        """A content hash of geometry, materials, textures, lights, sky, view, size, samples,
+        the bpy version and the Cycles side's script (the display's exposure is not in it: it
+        is applied afterwards)."""
         h = hashlib.sha256()
         d = self.description()
         d.pop("exposure")
         d.pop("threads")
         h.update(json.dumps(d, sort_keys=True).encode())
         h.update(str(version).encode())
+        h.update(WORKER.read_bytes())  # a change to the Cycles side renders afresh
         for name in sorted(self.arrays):
             a = np.ascontiguousarray(self.arrays[name])
             h.update(name.encode() + str(a.shape).encode() + a.tobytes())
         for img in self.texture_images:
             h.update(str(img.shape).encode() + np.ascontiguousarray(img).tobytes())
         return h.hexdigest()[:24]
+
+
+def material_for(m: Material) -> dict[str, Any]:
+    """A material as Cycles' Principled BSDF is told it: the factors and every glTF map (base
+    colour and emissive in sRGB, normal and metallic-roughness as data; the occlusion map has
+    no counterpart, a path tracer finds the occlusion itself)."""
+    return {
+        "name": m.name,
+        "base_color": [float(v) for v in m.base_color],
+        "texture": m.texture,
+        "roughness": float(m.roughness),
+        "metallic": float(m.metallic),
+        "emissive": [float(v) for v in m.emissive],
+        "normal_texture": m.normal_texture,
+        "normal_scale": float(m.normal_scale),
+        "metallic_roughness_texture": m.metallic_roughness_texture,
+        "emissive_texture": m.emissive_texture,
+        "alpha_mode": m.alpha_mode,
+        "alpha_cutoff": float(m.alpha_cutoff),
+        # casts no shadow in our renderer (render/shadows.py casts(): glowing, not glass)
+        "shadowless": bool(any(m.emissive)) and m.alpha_mode != "BLEND",
+    }
 
 
 def export(
@@ -292,27 +361,20 @@ def export(
     samples: int,
 ) -> ReferenceJob:
     """The job for our left eye at ``size`` (one eye's width x height) seeing ``scene``."""
-    materials = [
-        {
-            "name": m.name,
-            "base_color": [float(v) for v in m.base_color],
-            "texture": m.texture,
-            "roughness": float(m.roughness),
-            "metallic": float(m.metallic),
-            "emissive": [float(v) for v in m.emissive],
-        }
-        for m in scene.materials
-    ]
+    arrays = merged_arrays(scene)
+    sky = sky_for(scene, settings)
+    if sky is not None:
+        arrays["sky"] = sky_image(scene, settings)
     return ReferenceJob(
         size=(int(size[0]), int(size[1])),
         samples=int(samples),
         camera=eye_camera(settings, view, size),
         lights=lights_for(scene, settings),
-        sky=sky_for(settings),
-        materials=materials,
+        sky=sky,
+        materials=[material_for(m) for m in scene.materials],
         textures=[{"name": t.name, "repeat": bool(t.repeat)} for t in scene.textures],
         exposure=fixed_exposure(settings),
-        arrays=merged_arrays(scene),
+        arrays=arrays,
         texture_images=[t.rgba for t in scene.textures],
     )
 
@@ -437,7 +499,15 @@ FEATURES: tuple[Feature, ...] = (
         "normal_maps", "Normal maps", {"render.normal_maps": True}, {"render.normal_maps": False}
     ),
     Feature("indirect", "Indirect light", {"photons.enabled": "on"}, {"photons.enabled": "off"}),
-    Feature("ambient", "Ambient light", {}, {"render.ambient": 0.0}),
+    Feature(
+        "ambient", "Ambient light", {}, {"render.ambient": 0.0, "render.ambient_estimate": False}
+    ),
+    Feature(
+        "ambient_estimate",
+        "Ambient from the lamps (not fixed)",
+        {"render.ambient_estimate": True},
+        {"render.ambient_estimate": False},
+    ),
     Feature("cps", "Coarse pixel shading", {"cps.mode": "cps"}, {"cps.mode": "none"}),
 )
 
@@ -459,6 +529,9 @@ def usable(feature: Feature, settings: Settings) -> str | None:
     return None
 
 
+SETTLE_FRAMES = 3  # frames drawn per variant in a comparison, the last one kept
+
+
 def our_frames(
     scene: Scene, view: Viewpoint, size: tuple[int, int], variants: dict[str, Settings]
 ) -> dict[str, OurFrame]:
@@ -466,7 +539,10 @@ def our_frames(
 
     One host and one session draw them all, as the window does: the session ticks once at
     the view (gaze at the centre, texture levels, the coarse-shading caps) and the settings
-    are changed in place between frames, as the panels change them."""
+    are changed in place between frames, as the panels change them. Each variant's picture is
+    the settled one, as a user sees it after a moment at the view: the sky's visibility baked
+    (it lights the room through the windows only once baked), every shadow map drawn (the
+    per-frame budget of shadow redraws lifted) and the last of ``SETTLE_FRAMES`` frames."""
     from app.paths import FIXED_DT
     from app.session import Session
     from render.offscreen import OffscreenHost  # GL only when a comparison runs
@@ -484,10 +560,15 @@ def our_frames(
             for key in settings.keys():
                 if live.get(key) != settings.get(key):
                     live.set(key, settings.get(key))
-            session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
-            session.eye_size = size
-            session.tick(FIXED_DT)
-            img = host.draw(session.frame_input(*size))
+            live.set("render.shadow_updates_per_frame", 64)  # every shadow map at once
+            if live.sky.enabled and host.renderer.gpu_scene is not None:
+                with host.ctx:
+                    host.renderer.daylight.wait_for_visibility(host.renderer.gpu_scene)
+            for _ in range(SETTLE_FRAMES):
+                session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
+                session.eye_size = size
+                session.tick(FIXED_DT)
+                img = host.draw(session.frame_input(*size))
             # the exposure the present pass applied (metered, with the exposure branch)
             scale = float(getattr(host.renderer, "_exposure_scale", 1.0))
             out[name] = OurFrame(

@@ -15,6 +15,7 @@ from app.frame_log import OTHER, pass_colour, pass_label
 
 PLOT_RUN = "#2a5ac8"  # blue: a run
 PLOT_FRONT = "#dc1e1e"  # red: the Pareto front
+PLOT_MARKED = "#1e9e3c"  # green: the governor's runs
 TARGET_MS = 1000.0 / 30.0  # the 30 fps line (no target frame rate setting exists)
 
 
@@ -76,15 +77,20 @@ def pareto_plot(
     title: str,
     size: tuple[int, int] = (900, 600),
     named: tuple[str, ...] = (),
+    marked: str | None = None,
 ) -> np.ndarray:
     """Frame time (x) against FLIP (y): every run a dot, the Pareto front a red step line
-    through its runs, which are named (and the runs in ``named``). An HxWx3 array."""
+    through its runs, which are named (and the runs in ``named``). Runs whose name starts
+    with ``marked`` (the governor's) are drawn as green diamonds over the rest. An HxWx3
+    array."""
     fig = _figure(size)
-    _pareto_axes(fig.subplots(), rows, front, title, named)
+    _pareto_axes(fig.subplots(), rows, front, title, named, marked)
     return figure_array(fig)
 
 
-def _pareto_axes(ax: Any, rows: list[dict], front: list[str], title: str, named) -> None:
+def _pareto_axes(
+    ax: Any, rows: list[dict], front: list[str], title: str, named, marked: str | None = None
+) -> None:
     data = plot_data(rows, front)
     ax.set_title(f"{title}: frame time against error (FLIP)")
     ax.set_xlabel("frame time, median (ms)")
@@ -117,6 +123,17 @@ def _pareto_axes(ax: Any, rows: list[dict], front: list[str], title: str, named)
             color=PLOT_FRONT,
             label="run on the front",
             zorder=4,
+        )
+    special = [p for p in data.points if marked and p[0].startswith(marked)]
+    if special:
+        ax.scatter(
+            [p[1] for p in special],
+            [p[2] for p in special],
+            s=70,
+            marker="D",
+            color=PLOT_MARKED,
+            label=f"{marked}: holds a frame rate",
+            zorder=5,
         )
     for name, x, y in data.points:
         on = any(name == p[0] for p in data.front)

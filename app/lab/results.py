@@ -171,9 +171,15 @@ class BenchResult:
     error_vs_full_quality: ErrorVsFullQuality | None = None
     command: str | None = None  # the command that makes the run again (experiments)
     shadows: dict | None = None  # the shadow maps: GPU memory, maps drawn (render.shadows)
-    # The geometry drawn: ``triangles_drawn`` per eye (median over frames, after culling).
+    # The geometry drawn: ``triangles_drawn`` and ``draw_calls`` per eye (the geometry
+    # pass's, median over frames, after culling), ``draw_calls_frame`` (every pass's draws of
+    # meshes in a frame, shadow maps included), ``meshes`` and ``merged_groups`` (the
+    # material groups the static meshes were merged into, render.gpu_scene.GpuGroup).
     geometry: dict | None = None
     frame_budget: FrameBudget | None = None  # against render.target_fps (None: fixed)
+    refine: dict | None = (
+        None  # showroom_stop: refinement after the stop (bench.refine_after_still)
+    )
 
     @property
     def fps_median(self) -> float:
@@ -207,6 +213,8 @@ class BenchResult:
         }
         if self.error_vs_full_quality is not None:
             out["error_vs_full_quality"] = self.error_vs_full_quality.to_dict()
+        if self.refine is not None:
+            out["refine"] = self.refine
         if self.command is not None:
             out["command"] = self.command
         if self.shadows is not None:

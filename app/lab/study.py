@@ -153,6 +153,7 @@ class StudyRow:
     ssim: float | None
     flip: float | None
     fovea_psnr_db: float | None
+    fovea_flip: float | None
     fovea_max_diff: int | None
     periphery_psnr_db: float | None
     periphery_ssim: float | None
@@ -178,6 +179,7 @@ class StudyRow:
             ssim=frame.ssim if frame else None,
             flip=frame.flip if frame else None,
             fovea_psnr_db=fovea.psnr_db if fovea else None,
+            fovea_flip=fovea.flip if fovea else None,
             fovea_max_diff=err.fovea_max_abs_diff if err else None,
             periphery_psnr_db=periphery.psnr_db if periphery else None,
             periphery_ssim=periphery.ssim if periphery else None,

@@ -11,6 +11,16 @@ out vec4 v_tangent;
 layout(location = 5) in vec2 in_sky;  // sky visibility: front, back (app/sky_light.py)
 
 uniform mat4 u_view_projection;
+#ifdef OBJECT_TABLE
+// Merged meshes (render.gpu_scene.GpuGroup): each vertex names its mesh, whose row of the
+// per-object table carries what a per-mesh draw sets as uniforms (TCR tint and level).
+layout(location = 6) in int in_object;
+layout(std430, binding = OBJECT_TABLE_BINDING) readonly buffer ObjectTable {
+    vec4 objects[];  // rgb: TCR tint, a: TCR level minus the texture's resident base
+};
+flat out int v_object;
+flat out vec4 v_object_row;
+#endif
 
 out vec3 v_world;
 out vec3 v_normal;
@@ -34,5 +44,9 @@ void main() {
     v_ao = in_ao;
 #endif
     v_sky = in_sky;
+#ifdef OBJECT_TABLE
+    v_object = in_object;
+    v_object_row = objects[in_object];
+#endif
     gl_Position = u_view_projection * vec4(in_position, 1.0);
 }

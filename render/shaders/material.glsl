@@ -7,6 +7,8 @@
 //   HAS_OCCLUSION_MAP  ambient occlusion map (R), mixed by the strength
 //   HAS_EMISSIVE_MAP   emissive map (sRGB), times the emissive factor
 //   ALPHA_MASK         cut out below u_alpha_cutoff (alpha_mask.glsl)
+//   OBJECT_TABLE       merged meshes: the TCR level and tint come per object from the vertex
+//                      stage's table row (v_object_row), not from u_level / u_tint
 // Base colour sampling is compiled per TCR mode (a uniform branch made llvmpipe run every path):
 //   default    hardware trilinear mipmapping (TCR off: full quality)
 //   TCR_PAPER  exactly pyramid level j (the paper's method)
@@ -29,9 +31,17 @@ uniform float u_roughness;
 uniform float u_metallic;
 uniform vec3 u_emissive;
 uniform float u_alpha_cutoff;
+#ifdef OBJECT_TABLE
+flat in int v_object;      // the mesh's index
+flat in vec4 v_object_row;  // its table row: TCR tint rgb, level minus the resident base
+#endif
 #ifdef HAS_TEXTURE
 uniform sampler2D u_albedo;  // sRGB pyramid, repeat-wrapped; level 0 = the finest resident level
-uniform float u_level;       // TCR level j minus the resident base level (may be negative)
+#ifdef OBJECT_TABLE
+#define u_level (v_object_row.w)
+#else
+uniform float u_level;  // TCR level j minus the resident base level (may be negative)
+#endif
 #endif
 #ifdef HAS_MR_MAP
 uniform sampler2D u_mr_map;
@@ -44,7 +54,11 @@ uniform float u_occlusion_strength;
 uniform sampler2D u_emissive_map;
 #endif
 #ifdef TCR_TINT
+#ifdef OBJECT_TABLE
+#define u_tint (v_object_row.xyz)
+#else
 uniform vec3 u_tint;  // the level's legend colour, or (1, 1, 1) for level 0
+#endif
 #endif
 
 vec4 base_texel() {

@@ -40,6 +40,12 @@ float range_window(float d2, float range) {
     return w * w;
 }
 
+// Physical inverse square (E = I cos / d^2 for I candela) with a 10 cm floor on the distance
+// (LIGHT_MIN_DIST2, render/constants.py), times the range window: app/scene.py lamp_falloff.
+float lamp_falloff(float d2, float range) {
+    return range_window(d2, range) / max(d2, LIGHT_MIN_DIST2);
+}
+
 vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic) {
     vec3 diffuse_color = albedo * (1.0 - metallic);
     vec3 spec_color = mix(vec3(0.04), albedo, metallic);
@@ -71,7 +77,7 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
             if (d2 >= pr.w * pr.w) continue;
             dist = sqrt(d2);
             L = toL / max(dist, 1e-6);
-            falloff = range_window(d2, pr.w) / (d2 + 1.0) * spot_cone(i, L);
+            falloff = lamp_falloff(d2, pr.w) * spot_cone(i, L);
             if (falloff <= 0.0) continue;
         }
         float ndl = dot(N, L);

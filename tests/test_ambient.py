@@ -1,0 +1,132 @@
+"""The ambient term estimated from the lamps' bounced light (app/ambient.py,
+``render.ambient_estimate``): what the photon tracer finds in a closed box, nothing where no
+light comes back, and the frame's even light follows it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from app.ambient import estimate_ambient
+from app.camera import StereoCamera
+from app.frame import FrameInput
+from app.photons import trace_photons
+from app.scene import Light, Material, PointLight, Scene, Viewpoint
+from app.settings import Settings
+from render.offscreen import OffscreenHost
+from tests.test_photons import HALF, _box, _box_walls, _quad
+
+
+def _box_area() -> float:
+    x, y, z = 2.0 * HALF
+    return 2.0 * (x * y + y * z + x * z)
+
+
+@pytest.mark.parametrize("albedo", [0.3, 0.6])
+def test_closed_box_matches_the_photon_tracer(albedo):
+    """Inside a closed grey box every bounce stays in the room: the even indirect light is the
+    photon map's stored power (all bounces) over the walls' area, within 6 %."""
+    scene = _box(albedo, [PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)])
+    pm = trace_photons(scene, 2**16, seed=5, max_bounces=40)
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    photon_irradiance = float(pm.power.sum(axis=0, dtype=np.float64) @ luma) / _box_area()
+    est = estimate_ambient(scene)
+    assert est.closure == pytest.approx(0.5, abs=0.01)  # inner faces see all, outer none
+    assert est.mean_albedo == pytest.approx(albedo, rel=1e-6)
+    assert est.ambient * math.pi == pytest.approx(photon_irradiance, rel=0.06)
+    assert estimate_ambient(scene) == est, "seeded: the same value every time"
+
+
+def test_no_light_comes_back_from_black_walls_an_open_floor_or_a_lamp_outside():
+    lamp = PointLight((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 8.0, 1e4)
+    assert estimate_ambient(_box(0.0, [lamp])).ambient == 0.0  # black walls
+    assert estimate_ambient(_box(0.6, [])).ambient == 0.0  # no lamp
+    outside = PointLight((0.0, 5.0, 0.0), (1.0, 1.0, 1.0), 8.0, 1e4)
+    assert estimate_ambient(_box(0.6, [outside])).ambient == 0.0  # the box shades itself
+    floor = _quad(
+        "floor",
+        np.array([[-5, 0, -5], [5, 0, -5], [5, 0, 5], [-5, 0, 5]], float),
+        np.array([0.0, 1.0, 0.0]),
+        0,
+    )
+    open_floor = Scene("floor", [floor], [Material("white", (1, 1, 1, 1))], lights=[outside])
+    assert estimate_ambient(open_floor).ambient == 0.0  # its light goes to the sky
+    assert estimate_ambient(Scene("empty", [], [], lights=[outside])).ambient == 0.0
+
+
+def test_a_paler_room_and_the_sun_give_more_even_light():
+    lamp = PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)
+    dark, pale = estimate_ambient(_box(0.3, [lamp])), estimate_ambient(_box(0.7, [lamp]))
+    assert pale.ambient > 3.0 * dark.ambient
+    # A directional light into an open-topped box: only the sun that gets in counts.
+    walls = [m for m in _box_walls() if m.name != "wall11"]  # no ceiling
+    scene = Scene("open box", walls, [Material("grey", (0.5, 0.5, 0.5, 1.0))])
+    straight = Light((0, 0, 0), (1, 1, 1), 100.0, kind="directional", direction=(0, -1, 0))
+    low = Light((0, 0, 0), (1, 1, 1), 100.0, kind="directional", direction=(0.0, 0.1, -1.0))
+    assert estimate_ambient(scene, [straight]).ambient > 1.0
+    assert estimate_ambient(scene, [low]).ambient == 0.0  # from below the horizon
+
+
+def _wall_luminance(s: Settings) -> float:
+    scene = _box(0.5, [PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)])
+    scene.spawn = Viewpoint((0.0, 0.0, 1.5))
+    with OffscreenHost(160, 90, s) as host:
+        host.set_scene(scene)
+        cam = StereoCamera(s.stereo)
+        cam.set_pose(scene.spawn.position, 0.0, 0.0)
+        host.draw(FrameInput(cam.eyes(*host.eye_size), gaze=(0.5, 0.5)))
+        hdr = host.read_hdr(0)[:, :, :3]
+    lum = hdr @ np.array([0.2126, 0.7152, 0.0722])
+    return float(np.median(lum))
+
+
+def test_the_frame_takes_the_estimate():
+    """The wall facing the camera is lit by the lamp plus the even light: with the estimate,
+    brighter by albedo x (estimate - render.ambient)."""
+    s = Settings()
+    s.set("render.ambient_estimate", False)
+    fixed = _wall_luminance(s)
+    s.set("render.ambient_estimate", True)
+    estimated = _wall_luminance(s)
+    scene = _box(0.5, [PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)])
+    want = 0.5 * (estimate_ambient(scene).ambient - s.render.ambient)
+    assert want > 0.05
+    assert estimated - fixed == pytest.approx(want, rel=0.05)
+
+
+def test_a_glowing_pane_lets_the_sky_and_the_sun_in():
+    """The sky's and the sun's bounce come in through a window whose pane glows (it casts no
+    shadow in the renderer, so it hides no light here either), as through an open one."""
+    from app.ambient import AmbientProbe
+    from app.sky import bake_sky
+    from tests.test_photons import HALF
+
+    walls = [m for m in _box_walls() if m.name != "wall11"]  # the ceiling is the window
+    pane = _quad(
+        "pane",
+        np.array(
+            [
+                [-HALF[0], HALF[1], -HALF[2]],
+                [HALF[0], HALF[1], -HALF[2]],
+                [HALF[0], HALF[1], HALF[2]],
+                [-HALF[0], HALF[1], HALF[2]],
+            ]
+        ),
+        np.array([0.0, -1.0, 0.0]),
+        1,
+    )
+    mats = [Material("grey", (0.5, 0.5, 0.5, 1.0)), Material("sky", emissive=(0.6, 0.8, 1.0))]
+    open_box = Scene("open", walls, mats[:1])
+    glazed = Scene("glazed", [*walls, pane], mats)
+    s = Settings()
+    s.sky.enabled = True
+    sh = bake_sky(s).sh
+    sun = Light((0, 0, 0), (1, 1, 1), 100.0, kind="directional", direction=(0, -1, 0))
+    for lights, sky in (([], sh), ([sun], None)):
+        through = AmbientProbe(glazed).estimate(lights, sky).ambient
+        assert through > 0.0
+        assert through == pytest.approx(
+            AmbientProbe(open_box).estimate(lights, sky).ambient, rel=0.1
+        )

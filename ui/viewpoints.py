@@ -1,0 +1,105 @@
+"""Saved viewpoints, path playback and path recording in the main window.
+
+Viewpoints are kept per scene in ``viewpoints.json`` and recorded paths in ``paths/``, under
+:func:`data_dir`. A mixin of :class:`ui.main_window.MainWindow` (its view, session, status bar
+and View > Viewpoints menu).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+from PyQt6.QtGui import QAction
+from PyQt6.QtWidgets import QInputDialog
+
+from app.fileio import atomic_write_json
+from app.paths import CameraPath
+from app.scene import Viewpoint
+
+
+def data_dir() -> Path:
+    """Where screenshots, viewpoints and recordings go (VRPREVIEW_DATA overrides)."""
+    base = os.environ.get("VRPREVIEW_DATA") or Path.home() / ".local" / "share" / "vrpreview"
+    return Path(base)
+
+
+class ViewpointActions:
+    """Save a viewpoint, go to one, play the scene's path, record a new one."""
+
+    def _viewpoints_file(self) -> Path:
+        return data_dir() / "viewpoints.json"
+
+    def _read_viewpoints(self) -> dict:
+        try:
+            doc = json.loads(self._viewpoints_file().read_text(encoding="utf-8"))
+            return doc if isinstance(doc, dict) else {}
+        except (OSError, json.JSONDecodeError):
+            return {}
+
+    def save_viewpoint(self, name: str | None = None) -> None:
+        scene = self.session.scene
+        if scene is None:
+            return
+        all_vp = self._read_viewpoints()
+        mine = all_vp.setdefault(scene.name, {})
+        if not name:
+            name, ok = QInputDialog.getText(
+                self, "Save viewpoint", "Name:", text=f"Viewpoint {len(mine) + 1}"
+            )
+            if not ok or not name:
+                return
+        w = self.session.walker
+        mine[name] = {
+            "position": [float(v) for v in w.position],
+            "yaw_deg": w.yaw_deg,
+            "pitch_deg": w.pitch_deg,
+        }
+        atomic_write_json(self._viewpoints_file(), all_vp)
+        self._refresh_viewpoints()
+        self.statusBar().showMessage(f"Viewpoint '{name}' saved", 5000)
+
+    def _refresh_viewpoints(self) -> None:
+        menu = self.viewpoint_menu
+        for a in menu.actions()[2:]:
+            menu.removeAction(a)
+        scene = self.session.scene
+        if scene is None:
+            return
+        for name, vp in self._read_viewpoints().get(scene.name, {}).items():
+            a = QAction(name, self)
+            a.triggered.connect(
+                lambda _=False, v=vp: self.go_to(
+                    Viewpoint(tuple(v["position"]), v.get("yaw_deg", 0.0), v.get("pitch_deg", 0.0))
+                )
+            )
+            menu.addAction(a)
+
+    def go_to(self, vp: Viewpoint) -> None:
+        self.view.playing = False
+        self.session.walker.place(vp.position, vp.yaw_deg, vp.pitch_deg)
+
+    def toggle_play(self) -> None:
+        self.view.playing = not self.view.playing
+
+    def toggle_recording(self) -> None:
+        view = self.view
+        if not view.is_recording:
+            view.recording = []
+            view.is_recording = True
+            self.statusBar().showMessage("Recording path… (Ctrl+R stops)")
+            return
+        view.is_recording = False
+        keys = view.recording
+        if len(keys) < 2:
+            return
+        t0 = keys[0].t
+        for k in keys:
+            k.t -= t0
+        name = time.strftime("path-%Y%m%d-%H%M%S.json")
+        target = data_dir() / "paths" / name
+        scene = self.session.scene
+        CameraPath(keys, scene.name if scene else "").save(target)
+        self.statusBar().showMessage(f"Path saved: {target} (replay: --path {target})", 10000)
