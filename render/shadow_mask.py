@@ -37,11 +37,10 @@ from render.pass_graph import (
 from render.shaders import ShaderLibrary
 
 STEPS = {"half": 2, "quarter": 4}  # render.shadow_detail -> the sample spacing in pixels
-# Shadowed lights from which the mask pays (render.shadows -> count): its own pass and the
-# upsample cost about what three hard lights' lookups do at every pixel (one soft light's
-# four taps already cost more). Measured on llvmpipe, 2x640x720: the shared living room
-# (one lamp) hard 1.25x unshadowed per pixel, 1.35x with the mask; soft 1.35x and 1.29x.
-MIN_LIGHTS = {"hard": 3, "soft": 1}
+# Shadowed lights from which the mask is used (render.shadows -> count). Measured on llvmpipe,
+# 2x640x720, on a quiet machine: it pays from the first light, hard or soft (the shared living
+# room, one lamp: hard 1.31x unshadowed per pixel, 1.23x with the mask; soft 1.33x and 1.27x).
+MIN_LIGHTS = {"hard": 1, "soft": 1}
 
 
 @dataclass

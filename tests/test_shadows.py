@@ -82,7 +82,7 @@ MASK_FROM = dict(shadow_mask.MIN_LIGHTS)
 @pytest.fixture(autouse=True)
 def mask_from_one_light(monkeypatch):
     """The mask for every shadowed light count, so the few-light scenes here test it too (the
-    renderer's own threshold: test_the_mask_waits_for_enough_hard_lights)."""
+    renderer's own threshold: test_the_mask_waits_for_enough_lights)."""
     for mode in MASK_FROM:
         monkeypatch.setitem(shadow_mask.MIN_LIGHTS, mode, 1)
 
@@ -220,12 +220,13 @@ def test_the_shadow_mask_gives_the_per_pixel_picture(host, shadows, count):
     assert at(half, fi, SHADOWED) == pytest.approx(at(full, fi, SHADOWED), abs=0.01)
 
 
-def test_the_mask_waits_for_enough_hard_lights(host, monkeypatch):
-    """Hard shadows of one or two lights are looked up per pixel (cheaper than the mask's own
-    pass), from three on through the mask; soft ones from the first light."""
+def test_the_mask_waits_for_enough_lights(host, monkeypatch):
+    """Below ``MIN_LIGHTS`` shadowed lights the lighting looks them up per pixel (today the
+    mask pays from the first light, hard or soft); shadowed either way."""
     for mode, count in MASK_FROM.items():
         monkeypatch.setitem(shadow_mask.MIN_LIGHTS, mode, count)
-    assert MASK_FROM == {"hard": 3, "soft": 1}
+    assert MASK_FROM == {"hard": 1, "soft": 1}
+    monkeypatch.setitem(shadow_mask.MIN_LIGHTS, "hard", 3)  # as a threshold would
     for shadows, count, used in (("hard", 2, 0), ("hard", 3, 3), ("soft", 1, 1)):
         img, fi = hdr(host, box_scene(mask_lights(count)), shadows)
         assert host.renderer.shadow_mask.lights == used, (shadows, count)
