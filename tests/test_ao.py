@@ -87,6 +87,8 @@ def draw(host: OffscreenHost, scene: Scene, **settings) -> list:
     for key in ("render.path", "render.lighting", "render.ao", "render.ao_strength", "cps.mode"):
         s.set(key, defaults.get(key))
     s.set("render.ao", "screen")  # these tests look at the occlusion unless told otherwise
+    # ... of the fixed ambient term (the estimate from the lamps is 0 in a room without any).
+    s.set("render.ambient_estimate", False)
     for key, value in settings.items():
         s.set(key.replace("__", "."), value)
     if host.scene is not scene:

@@ -35,7 +35,7 @@ def texel_checker(size: int = 64) -> Texture:
 
 def near_far_scene() -> Scene:
     """A near quad (left of view, 1 m away) and a far one (right of view, 15 m away), each with
-    its own texel checker; lit evenly by a light at the eye."""
+    its own texel checker; each lit by a lamp of its own (at the eye, and before the far one)."""
     near = quad("near", (-0.45, 1.6, -1.0), 0.35, material=0, uv_scale=0.1)  # magnified
     far = quad("far", (6.0, 1.6, -15.0), 5.0, material=1, uv_scale=8.0)  # minified
     mats = [
@@ -47,7 +47,14 @@ def near_far_scene() -> Scene:
         [near, far],
         mats,
         [texel_checker(), texel_checker()],
-        [PointLight((0, 1.6, 0), (1, 1, 1), 5.0, 100.0)],
+        # Light falls off with the square of the distance: the far quad has its own lamp, 14 m
+        # before it (so it lights it evenly: the tests measure texture detail, not light) and
+        # bright enough to show its tint without washing it out; it lies in the near quad's
+        # plane, so it does not light that one.
+        [
+            PointLight((0, 1.6, 0), (1, 1, 1), 5.0, 100.0),
+            PointLight((6.0, 1.6, -1.0), (1, 1, 1), 300.0, 100.0),
+        ],
         Viewpoint((0, 1.6, 0)),
     ).sanitized()
 
