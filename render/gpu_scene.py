@@ -1,5 +1,5 @@
-"""The scene on the GPU: one vertex/index buffer pair per mesh, texture pyramids, lights, and
-the static meshes merged per material.
+"""The scene on the GPU: the static meshes merged per material (or one vertex/index buffer
+pair per mesh), texture pyramids, lights.
 
 Geometry is uploaded once per scene; base colour textures stream their pyramid levels
 (TextureStreamer); the per-pixel material maps (normal, metallic-roughness, occlusion: linear
@@ -27,6 +27,10 @@ whole at full detail is one call, and a group split into several ranges is one i
 multi-draw of them. Blended groups keep each member's chunks too (``draw_members``): the blend
 pass sorts meshes back to front as before and draws each run of one group's meshes in that
 order as one multi-draw. ``merge=False`` keeps the per-mesh path (tests, debugging).
+
+The geometry is held once: merged, a mesh has no buffers of its own (only the standalone ones
+do), so its group's are all there is; ``geometry_bytes`` counts them (the bench's
+``geometry.gpu_bytes``).
 """
 
 from __future__ import annotations
