@@ -1,5 +1,5 @@
-"""The scene on the GPU: one vertex/index buffer pair per mesh, texture pyramids, lights, and
-the static meshes merged per material.
+"""The scene on the GPU: the static meshes merged per material (or one vertex/index buffer
+pair per mesh), texture pyramids, lights.
 
 Geometry is uploaded once per scene; base colour textures stream their pyramid levels
 (TextureStreamer); the per-pixel material maps (normal, metallic-roughness, occlusion: linear
@@ -27,12 +27,18 @@ whole at full detail is one call, and a group split into several ranges is one i
 multi-draw of them. Blended groups keep each member's chunks too (``draw_members``): the blend
 pass sorts meshes back to front as before and draws each run of one group's meshes in that
 order as one multi-draw. ``merge=False`` keeps the per-mesh path (tests, debugging).
+
+The geometry is held once: merged, a mesh has no buffers of its own (only the standalone ones
+do), so its group's are all there is; ``geometry_bytes`` counts them (the bench's
+``geometry.gpu_bytes``).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import moderngl
@@ -71,13 +77,17 @@ MAPS = {
 
 @dataclass
 class GpuMesh:
+    """One mesh. Its own vertex/index/sky buffers only where it is drawn on its own (every
+    mesh with ``merge=False``, the standalone ones with it); a merged mesh's geometry lives
+    in its group's buffers alone (None here), so the scene holds it once."""
+
     name: str
-    vbo: moderngl.Buffer
-    ibo: moderngl.Buffer
+    vbo: moderngl.Buffer | None
+    ibo: moderngl.Buffer | None
     material: Material
     texture: int | None  # index into GpuScene.streamer
     vertex_count: int
-    sky_vbo: moderngl.Buffer  # per vertex: sky visibility front, back (2f; 0 until baked)
+    sky_vbo: moderngl.Buffer | None  # per vertex: sky visibility front, back (2f; 0 unbaked)
     tangents: bool = False  # the vertex buffer has a tangent (TANGENT_FORMAT)
     centre: tuple[float, float, float] = (0.0, 0.0, 0.0)  # bounding-box centre (blend order)
     maps: dict[str, moderngl.Texture] | None = None  # sampler name -> material map
@@ -157,6 +167,7 @@ class GpuScene:
         stream_in: bool = False,
         merge: bool = True,
     ) -> None:
+        started = time.perf_counter()
         self.ctx = ctx
         self.scene = scene
         # Textures no material uses as its base colour are not streamed (a 1x1 stands in,
@@ -196,12 +207,12 @@ class GpuScene:
             self.meshes.append(
                 GpuMesh(
                     m.name,
-                    ctx.buffer(data.tobytes()),
-                    ctx.buffer(indices.astype(np.uint32).tobytes()),
+                    None,  # uploaded below unless the mesh is merged into a group
+                    None,
                     mat,
                     mat.texture,
                     int(m.indices.size),  # the full level's index count
-                    ctx.buffer(np.zeros((max(len(m.positions), 1), 2), np.float32).tobytes()),
+                    None,
                     tangents,
                     (float(centre[0]), float(centre[1]), float(centre[2])),
                     maps,
@@ -216,6 +227,11 @@ class GpuScene:
         self._member_all, self._member_owner = merge_chunks([])
         if merge:
             self._merge(vertex_data, index_data)
+        for i in self.standalone:  # merged meshes: their group's buffers only
+            mesh, data = self.meshes[i], vertex_data[i]
+            mesh.vbo = ctx.buffer(data.tobytes())
+            mesh.ibo = ctx.buffer(index_data[i].tobytes())
+            mesh.sky_vbo = ctx.buffer(np.zeros((max(len(data), 1), 2), np.float32).tobytes())
         self._group_all, self._group_owner = merge_chunks([g.chunks for g in self.groups])
         del vertex_data, index_data
         n_rows = max(len(self.meshes), 1)
@@ -246,6 +262,16 @@ class GpuScene:
         self.light_buffer = ctx.buffer(reserve=3 * MAX_LIGHTS * 16)
         self.light_version = 0  # counts set_lights calls (the shadow maps' cache watches it)
         self.set_lights(scene.lights)
+        ctx.finish()
+        self.upload_s = time.perf_counter() - started  # geometry, maps, first texture levels
+
+    @property
+    def geometry_bytes(self) -> int:
+        """GPU bytes of the geometry: every vertex, index, sky-visibility and object-index
+        buffer of the meshes and merged groups (not the baked AO, uploaded when first drawn)."""
+        buffers = [b for m in self.meshes for b in (m.vbo, m.ibo, m.sky_vbo) if b is not None]
+        buffers += [b for g in self.groups for b in (g.vbo, g.ibo, g.sky_vbo, g.object_vbo)]
+        return sum(b.size for b in buffers)
 
     def _merge(self, vertex_data: list[np.ndarray], index_data: list[np.ndarray]) -> None:
         """Group the meshes by material (``GpuGroup``), in the order of each group's first
@@ -572,7 +598,7 @@ class GpuScene:
         self,
         program: moderngl.Program,
         mesh: GpuMesh | GpuGroup,
-        extra: list[tuple[moderngl.Buffer, str, str]],
+        extra: Sequence[tuple[moderngl.Buffer | None, str, str]],
     ) -> moderngl.VertexArray:
         """``mesh``'s vertices (the attributes ``program`` has) plus ``extra`` buffers whose
         attribute ``program`` uses."""
@@ -581,8 +607,12 @@ class GpuScene:
         fmt = " ".join(
             f if a in attrs else f[0] + "x4" for f, a in zip(layout[0].split(), layout[1])
         )
+        if mesh.vbo is None:
+            raise ValueError(
+                f"mesh '{getattr(mesh, 'name', '')}' is merged into a group: draw its group"
+            )
         buffers: list = [(mesh.vbo, fmt, *attrs)]
-        buffers += [(buf, f, name) for buf, f, name in extra if name in program]
+        buffers += [(buf, f, name) for buf, f, name in extra if buf is not None and name in program]
         return self.ctx.vertex_array(program, buffers, index_buffer=mesh.ibo, index_element_size=4)
 
     def vao(self, program: moderngl.Program, index: int) -> moderngl.VertexArray:
@@ -660,9 +690,9 @@ class GpuScene:
             v.release()
         self._group_vaos.clear()
         for m in self.meshes:
-            m.vbo.release()
-            m.ibo.release()
-            m.sky_vbo.release()
+            for buf in (m.vbo, m.ibo, m.sky_vbo):
+                if buf is not None:
+                    buf.release()
         for g in self.groups:
             for buf in (g.vbo, g.ibo, g.sky_vbo, g.object_vbo):
                 buf.release()
@@ -683,7 +713,7 @@ class GpuScene:
         """Each mesh's per-vertex sky visibility ((N, 2): front, back), from app.sky_light."""
         for mesh, v in zip(self.meshes, values):
             data = np.ascontiguousarray(v, np.float32)
-            if data.nbytes == mesh.sky_vbo.size:
+            if mesh.sky_vbo is not None and data.nbytes == mesh.sky_vbo.size:
                 mesh.sky_vbo.write(data.tobytes())
         for g in self.groups:
             if max(g.members) >= len(values):

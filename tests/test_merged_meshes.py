@@ -119,6 +119,38 @@ def test_groups_are_the_materials():
         host.close()
 
 
+def test_merged_geometry_is_held_once_on_the_gpu(host):
+    """Merged, a mesh's vertices and indices live in its group's buffers only: the scene's
+    geometry bytes are the per-mesh path's (plus each vertex's 4-byte mesh index), not
+    both paths' buffers side by side (about twice that)."""
+    scene = room()
+    host.renderer.merge_meshes = False
+    host.set_scene(scene)
+    per_mesh = host.renderer.gpu_scene
+    assert per_mesh is not None and not per_mesh.groups
+    per_mesh_bytes = per_mesh.geometry_bytes
+    assert all(m.vbo is not None and m.ibo is not None for m in per_mesh.meshes)
+    host.renderer.merge_meshes = True
+    host.set_scene(scene)
+    merged = host.renderer.gpu_scene
+    assert merged is not None and merged.groups
+    vertices = sum(len(m.positions) for m in scene.meshes)
+    # Per vertex: position, normal, uv, colour (44 bytes) and sky visibility (8): the floor
+    # alone holds thousands, so the merged scene holding both copies would be ~2x.
+    assert per_mesh_bytes > 52 * vertices
+    assert all(m.vbo is None and m.ibo is None and m.sky_vbo is None for m in merged.meshes)
+    assert merged.geometry_bytes == pytest.approx(per_mesh_bytes + 4 * vertices, rel=0.01)
+    assert merged.geometry_bytes < 0.55 * (per_mesh_bytes + merged.geometry_bytes)
+    with pytest.raises(ValueError, match="merged into a group"):
+        with host.ctx:
+            prog = host.ctx.program(
+                vertex_shader="#version 330\nin vec3 in_position;\n"
+                "void main() { gl_Position = vec4(in_position, 1.0); }",
+                fragment_shader="#version 330\nout vec4 c;\nvoid main() { c = vec4(1.0); }",
+            )
+            merged.vao(prog, 0)
+
+
 @pytest.mark.parametrize("path", ["deferred", "forward"])
 @pytest.mark.parametrize("shadows", ["off", "soft"])
 def test_merged_and_per_mesh_paths_draw_the_same_picture(host, path, shadows):

@@ -293,6 +293,8 @@ def bench(
         shadows = host.renderer.shadows.stats()  # shadow_memory_bytes: the maps' GPU memory
         gpu_scene = host.renderer.gpu_scene
         merged_groups = len(gpu_scene.groups) if gpu_scene is not None else 0
+        gpu_bytes = gpu_scene.geometry_bytes if gpu_scene is not None else 0
+        upload_s = gpu_scene.upload_s if gpu_scene is not None else 0.0
         device = host.ctx.info.get("GL_RENDERER", "")
         trace_ms = host.photon_cache.trace_ms
     finally:
@@ -341,6 +343,8 @@ def bench(
             "draw_calls_frame": int(np.median(frame_calls)) if frame_calls else 0,
             "meshes": len(scene.meshes),
             "merged_groups": merged_groups,
+            "gpu_bytes": gpu_bytes,  # vertex + index buffers (render.gpu_scene.geometry_bytes)
+            "upload_s": round(upload_s, 3),  # GpuScene: geometry, maps, first texture levels
         },
         frame_budget=budget,
         refine=refine,

@@ -174,7 +174,9 @@ class BenchResult:
     # The geometry drawn: ``triangles_drawn`` and ``draw_calls`` per eye (the geometry
     # pass's, median over frames, after culling), ``draw_calls_frame`` (every pass's draws of
     # meshes in a frame, shadow maps included), ``meshes`` and ``merged_groups`` (the
-    # material groups the static meshes were merged into, render.gpu_scene.GpuGroup).
+    # material groups the static meshes were merged into, render.gpu_scene.GpuGroup),
+    # ``gpu_bytes`` (the vertex, index, sky and object-index buffers on the GPU, each mesh's
+    # geometry held once) and ``upload_s`` (building the GpuScene: the upload).
     geometry: dict | None = None
     frame_budget: FrameBudget | None = None  # against render.target_fps (None: fixed)
     refine: dict | None = (
