@@ -32,7 +32,7 @@ from render.pass_graph import (
     uniform,
 )
 from render.shaders import ShaderLibrary
-from render.upscale import upscale_defines
+from render.upscale import rcas_con, sharpen_stops, upscale_defines
 
 log = logging.getLogger(__name__)
 BACKGROUND = (0.02, 0.02, 0.025)
@@ -569,6 +569,7 @@ class PresentPass(RenderPass):
         self.visualize = False
         self.tone: dict[str, object] = {}
         self.upscaler = "easu"  # render.upscale.UPSCALERS: how eyes drawn smaller are enlarged
+        self.sharpen = 0.0  # render.sharpen: RCAS after EASU, 0 off
         self._display: list[tuple[moderngl.Texture, moderngl.Framebuffer]] = []
 
     @staticmethod
@@ -582,6 +583,7 @@ class PresentPass(RenderPass):
         self.visualize = settings.cps.visualize
         self.tone = self.defines(settings)
         self.upscaler = "bilinear" if settings.render.upscaler == "bilinear" else "easu"
+        self.sharpen = float(settings.render.sharpen)
         return True
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
@@ -590,7 +592,7 @@ class PresentPass(RenderPass):
         show_reuse = bool(res.get("show_reuse")) and indirect is not None
         src = res.targets[0].size
         w, h = frame.view_size or src
-        scaled = upscale_defines(src, (w, h), self.upscaler)
+        scaled = upscale_defines(src, (w, h), self.upscaler, self.sharpen)
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "present.frag.glsl",
@@ -645,6 +647,9 @@ class PresentPass(RenderPass):
         frame.out.use()
         x, y = frame.out_origin
         set_uniforms(prog, {"u_src_size": src, "u_dst_size": dst})
+        stops = sharpen_stops(self.sharpen)
+        if defines.get("RCAS") and stops is not None:
+            uniform(prog, "u_rcas_con").value = rcas_con(stops)
         for index, (tex, _fbo) in enumerate(self._display):
             origin = (x + index * dst[0], y)
             frame.out.viewport = (*origin, *dst)

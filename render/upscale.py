@@ -5,6 +5,11 @@ an edge-adaptive filter after FSR 1's EASU (AMD FidelityFX Super Resolution 1: a
 Lanczos-like kernel stretched along the local edge, clamped to its 2x2 neighbourhood against
 ringing), on the tone-mapped, display-encoded colour as FSR expects
 (``render/shaders/easu.glsl``, ``upscale.frag.glsl``). ``bilinear`` stays as the plain comparison.
+
+FSR 1's second half, RCAS (robust contrast-adaptive sharpening, ``render/shaders/rcas.glsl``),
+sharpens what EASU enlarges (``render.sharpen``). It is folded into the upscale pass: EASU's
+taps read the drawn eye through RCAS, so there is no extra full-screen pass and no
+intermediate target (measured the cheaper placement on llvmpipe; see ``rcas_con``).
 """
 
 from __future__ import annotations
@@ -23,10 +28,29 @@ def render_size(view: tuple[int, int], scale: float) -> tuple[int, int]:
     return max(min(w, MIN_SIDE), round(w * s)), max(min(h, MIN_SIDE), round(h * s))
 
 
-def upscale_defines(src: tuple[int, int], dst: tuple[int, int], upscaler: str) -> dict[str, object]:
-    """The present shader's variant: none at 1:1, else the chosen filter."""
+#: FSR's default sharpness, in stops (0 strongest); ``render.sharpen`` 0.9 maps to it.
+DEFAULT_STOPS = 0.2
+
+
+def sharpen_stops(amount: float) -> float | None:
+    """RCAS's sharpness in stops for ``render.sharpen`` (0 to 1: off to strongest): None
+    when off, else 2 stops at the weakest step down to 0 (FSR's strongest) at 1."""
+    a = min(1.0, max(0.0, float(amount)))
+    return None if a <= 0.0 else 2.0 * (1.0 - a)
+
+
+def rcas_con(stops: float) -> float:
+    """RCAS's lobe scale for a sharpness in stops (FsrRcasCon: 2^-stops)."""
+    return float(2.0 ** -max(0.0, stops))
+
+
+def upscale_defines(
+    src: tuple[int, int], dst: tuple[int, int], upscaler: str, sharpen: float = 0.0
+) -> dict[str, object]:
+    """The present shader's variant: none at 1:1, else the chosen filter; EASU with
+    ``sharpen`` > 0 (render.sharpen) reads its taps through RCAS."""
     if src == dst:
         return {}
-    return (
-        {"UPSCALE_BILINEAR": upscaler == "bilinear"} if upscaler == "bilinear" else {"EASU": True}
-    )
+    if upscaler == "bilinear":
+        return {"UPSCALE_BILINEAR": True}
+    return {"EASU": True, "RCAS": sharpen_stops(sharpen) is not None}
