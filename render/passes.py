@@ -570,6 +570,10 @@ class PresentPass(RenderPass):
         self.tone: dict[str, object] = {}
         self.upscaler = "easu"  # render.upscale.UPSCALERS: how eyes drawn smaller are enlarged
         self.sharpen = 0.0  # render.sharpen: RCAS after EASU, 0 off
+        # Where RCAS runs: "pass", its own pass at the drawn size before EASU (measured the
+        # cheapest: tests/measure_rcas.py), or "folded" into EASU's taps (no extra target).
+        self.rcas_placement = "pass"
+        self._sharpened = False  # this frame's eyes were sharpened into _display[2:]
         self._display: list[tuple[moderngl.Texture, moderngl.Framebuffer]] = []
 
     @staticmethod
@@ -622,6 +626,9 @@ class PresentPass(RenderPass):
                 uniform(prog, "u_paint_reuse").value = index
             self.fullscreen(prog)
         if scaled:
+            if scaled.get("RCAS") and self.rcas_placement == "pass":
+                self._sharpen(src)
+                scaled = {**scaled, "RCAS": False}
             self._upscale(frame, scaled, src, (w, h))
         frame.out.viewport = (x, y, 2 * w, h)
 
@@ -630,11 +637,25 @@ class PresentPass(RenderPass):
         if self._display and self._display[0][0].size == size:
             return
         self._release_display()
-        for _ in range(2):
+        for _ in range(4):  # per eye the tone-mapped colour, then (render.sharpen) sharpened
             tex = self.ctx.texture(size, 4)
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             tex.repeat_x = tex.repeat_y = False
             self._display.append((tex, self.ctx.framebuffer([tex])))
+
+    def _sharpen(self, src: tuple[int, int]) -> None:
+        """RCAS per eye at the drawn size, into the second pair of targets (render.sharpen)."""
+        stops = sharpen_stops(self.sharpen)
+        prog = self.shaders.program("fullscreen.vert.glsl", "rcas.frag.glsl")
+        uniform(prog, "u_src_size").value = src
+        uniform(prog, "u_rcas_con").value = rcas_con(stops if stops is not None else 2.0)
+        for index in range(2):
+            fbo = self._display[2 + index][1]
+            fbo.use()
+            fbo.viewport = (0, 0, *src)
+            bind_texture(prog, "eye_color", self._display[index][0])
+            self.fullscreen(prog)
+        self._sharpened = True
 
     def _upscale(
         self,
@@ -650,7 +671,9 @@ class PresentPass(RenderPass):
         stops = sharpen_stops(self.sharpen)
         if defines.get("RCAS") and stops is not None:
             uniform(prog, "u_rcas_con").value = rcas_con(stops)
-        for index, (tex, _fbo) in enumerate(self._display):
+        first = 2 if self._sharpened else 0
+        self._sharpened = False
+        for index, (tex, _fbo) in enumerate(self._display[first : first + 2]):
             origin = (x + index * dst[0], y)
             frame.out.viewport = (*origin, *dst)
             uniform(prog, "u_origin").value = origin

@@ -20,30 +20,47 @@ def gl():
     ctx.release()
 
 
-def enlarge(gl, img: np.ndarray, sharpen: float) -> np.ndarray:
-    """``img`` (rows x columns x 3, 0-255, row 0 at the bottom) enlarged to DST."""
-    ctx, lib = gl
-    defines = upscale_defines(SRC, DST, "easu", sharpen)
-    prog = lib.program("fullscreen.vert.glsl", "upscale.frag.glsl", defines)
-    rgba = np.concatenate([img, np.full(img.shape[:2] + (1,), 255)], axis=2).astype(np.uint8)
-    src = ctx.texture(SRC, 4, rgba.tobytes())
-    src.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    out = ctx.texture(DST, 4)
+def _draw(ctx, prog, src: moderngl.Texture, size: tuple[int, int]) -> moderngl.Texture:
+    out = ctx.texture(size, 4)
     fbo = ctx.framebuffer([out])
     fbo.use()
-    fbo.viewport = (0, 0, *DST)
-    prog["u_src_size"].value = SRC
-    prog["u_dst_size"].value = DST
-    prog["u_origin"].value = (0, 0)
-    if defines.get("RCAS"):
-        prog["u_rcas_con"].value = rcas_con(sharpen_stops(sharpen) or 0.0)
+    fbo.viewport = (0, 0, *size)
     src.use(0)
     prog["u_eye_color"].value = 0
     vao = ctx.vertex_array(prog, [])
     vao.render(moderngl.TRIANGLES, vertices=3)
-    pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(DST[1], DST[0], 3)
-    for obj in (vao, fbo, out, src):
-        obj.release()
+    vao.release()
+    fbo.release()
+    out.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return out
+
+
+def enlarge(gl, img: np.ndarray, sharpen: float, placement: str = "pass") -> np.ndarray:
+    """``img`` (rows x columns x 3, 0-255, row 0 at the bottom) enlarged to DST as the present
+    pass does: RCAS in its own pass at the drawn size, or folded into EASU's taps."""
+    ctx, lib = gl
+    defines = upscale_defines(SRC, DST, "easu", sharpen)
+    rgba = np.concatenate([img, np.full(img.shape[:2] + (1,), 255)], axis=2).astype(np.uint8)
+    src = ctx.texture(SRC, 4, rgba.tobytes())
+    src.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    con = rcas_con(sharpen_stops(sharpen) or 0.0)
+    if defines.get("RCAS") and placement == "pass":
+        rcas = lib.program("fullscreen.vert.glsl", "rcas.frag.glsl")
+        rcas["u_src_size"].value = SRC
+        rcas["u_rcas_con"].value = con
+        sharp = _draw(ctx, rcas, src, SRC)
+        src.release()
+        src, defines = sharp, {**defines, "RCAS": False}
+    prog = lib.program("fullscreen.vert.glsl", "upscale.frag.glsl", defines)
+    prog["u_src_size"].value = SRC
+    prog["u_dst_size"].value = DST
+    prog["u_origin"].value = (0, 0)
+    if defines.get("RCAS"):
+        prog["u_rcas_con"].value = con
+    out = _draw(ctx, prog, src, DST)
+    pixels = np.frombuffer(out.read(), np.uint8).reshape(DST[1], DST[0], 4)[..., :3]
+    out.release()
+    src.release()
     return pixels.astype(np.float32)
 
 
@@ -62,11 +79,12 @@ def edge_slope(img: np.ndarray) -> float:
     return float(np.diff(g, axis=1).max(axis=1).mean())
 
 
-def test_sharpening_steepens_an_enlarged_edge_without_ringing(gl):
+@pytest.mark.parametrize("placement", ["pass", "folded"])
+def test_sharpening_steepens_an_enlarged_edge_without_ringing(gl, placement):
     src = soft_step()
     plain = enlarge(gl, src, 0.0)
-    sharp = enlarge(gl, src, 0.9)  # FSR's default, 0.2 stops
-    strongest = enlarge(gl, src, 1.0)
+    sharp = enlarge(gl, src, 0.9, placement)  # FSR's default, 0.2 stops
+    strongest = enlarge(gl, src, 1.0, placement)
     assert edge_slope(sharp) > 1.08 * edge_slope(plain)  # measured 37 against 33 levels/px
     assert edge_slope(strongest) >= edge_slope(sharp)
     # no overshoot beyond the neighbourhood: nothing darker or brighter than the two sides
@@ -84,12 +102,17 @@ def test_sharpening_off_is_exactly_the_plain_edge_preserving_picture(gl):
     off = enlarge(gl, src, 0.0)
     assert np.array_equal(off, enlarge(gl, src, -0.5))  # below 0 is off too
     assert not np.array_equal(off, enlarge(gl, src, 0.9))  # while on changes the picture
+    # both placements sharpen alike: within a level or two of each other
+    diff = np.abs(enlarge(gl, src, 0.9) - enlarge(gl, src, 0.9, "folded"))
+    assert diff.mean() < 2.0
 
 
-def test_a_flat_picture_stays_flat(gl):
+@pytest.mark.parametrize("placement", ["pass", "folded"])
+def test_a_flat_picture_stays_flat(gl, placement):
     for level in (0.0, 37.0, 200.0, 255.0):
         flat = np.full((SRC[1], SRC[0], 3), level, np.float32)
-        assert np.array_equal(enlarge(gl, flat, 1.0), np.full((DST[1], DST[0], 3), level))
+        sharp = enlarge(gl, flat, 1.0, placement)
+        assert np.array_equal(sharp, np.full((DST[1], DST[0], 3), level))
 
 
 def test_sharpness_maps_to_fsr_stops():
