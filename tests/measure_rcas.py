@@ -24,7 +24,8 @@ VARIANTS = (
     ("easu", {"render.upscaler": "edge", "render.sharpen": 0.0}),
     ("rcas pass 0.2 stops", {"render.upscaler": "edge", "render.sharpen": 0.9}),
     ("rcas pass 0 stops", {"render.upscaler": "edge", "render.sharpen": 1.0}),
-    ("rcas folded 0.2 st", {"render.upscaler": "edge", "render.sharpen": 0.9, "folded": True}),
+    ("rcas folded 0.2 st", {"render.upscaler": "edge", "render.sharpen": 0.9, "at": "folded"}),
+    ("rcas after 0.2 st", {"render.upscaler": "edge", "render.sharpen": 0.9, "at": "after"}),
 )
 
 
@@ -43,7 +44,7 @@ def measure(scene_name: str, repeats: int) -> None:
 
         def shot(values: dict) -> tuple:
             values = dict(values)
-            present.rcas_placement = "folded" if values.pop("folded", False) else "pass"
+            present.rcas_placement = values.pop("at", "pass")
             for key, value in values.items():
                 host.settings.set(key, value)
             img = host.draw(frame)
