@@ -8,11 +8,15 @@ ringing), on the tone-mapped, display-encoded colour as FSR expects
 
 FSR 1's second half, RCAS (robust contrast-adaptive sharpening, ``render/shaders/rcas.glsl``),
 sharpens the picture EASU enlarges (``render.sharpen``). FSR runs it after EASU at the output
-size; here it runs at the drawn size just before EASU, as its own small pass into a second
-target per eye (``rcas.frag.glsl``): measured on llvmpipe at 2x640x720 (``tests/measure_rcas.py``)
-it adds about 2 ms to the present pass at render.scale 0.67 and 0.5, where folding it into
-EASU's 12 taps (``PresentPass.rcas_placement = "folded"``, 60 fetches a pixel) adds about 20 ms
-and a pass at the view's size would cost a full-screen pass (4-8 ms here).
+size; by default here it runs at the drawn size just before EASU, as its own small pass into a
+second target per eye (``rcas.frag.glsl``). Measured on llvmpipe, showroom at 2x640x720
+(``tests/measure_rcas.py``), the present pass's time over EASU alone at render.scale 0.67 / 0.5:
+this placement +3.4 / +1.7 ms, FSR's after EASU (``PresentPass.rcas_placement = "after"``)
++6.3 / +7.3 ms, folded into EASU's 12 taps ("folded", 60 fetches a pixel) +20 / +22 ms; FLIP
+against the full frame 0.0638 / 0.0806 here, 0.0638 / 0.0792 after (EASU alone 0.0585 /
+0.0773: sharpening never lowers the error against an unsharpened full frame). Before EASU only
+soft detail gains: a drawn edge one pixel wide has nothing to sharpen, where "after" crisps
+EASU's own soft edges too.
 """
 
 from __future__ import annotations
