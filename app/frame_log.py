@@ -129,6 +129,7 @@ def nice_ceiling(value: float) -> float:
 PASS_LABELS = {
     "gbuffer": "geometry (G-buffer)",
     "light_cull": "light culling",
+    "shadow_mask": "shadows on screen",
     "cps_levels": "CPS detail levels",
     "photons": "photon gather",
     "lighting": "lighting",
@@ -155,6 +156,7 @@ def pass_label(name: str) -> str:
 PASS_COLOURS = {
     "gbuffer": "#1f77b4",
     "light_cull": "#17becf",
+    "shadow_mask": "#393b79",
     "cps_levels": "#bcbd22",
     "photons": "#9467bd",
     "lighting": "#ff7f0e",

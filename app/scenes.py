@@ -50,6 +50,7 @@ def _tcr_cube() -> Scene:
 
 BUILTIN: dict[str, Callable[[], Scene]] = {
     "showroom": _showroom(4),
+    "showroom-8": _showroom(8),  # issue 14's target: 8 shadowed lamps against unshadowed
     "showroom-100": _showroom(100),
     "showroom-gi": _showroom(4, indirect=True),
     "texture-test": _texture_test,
@@ -58,6 +59,7 @@ BUILTIN: dict[str, Callable[[], Scene]] = {
 }
 BUILTIN_PATHS = {
     "showroom": "showroom_walkthrough",
+    "showroom-8": "showroom_walkthrough",
     "showroom-100": "showroom_walkthrough",
     "showroom-gi": "showroom_walkthrough",
     "tcr-cube": "tcr_cube_distance",
@@ -129,6 +131,7 @@ def look_around(scene: Scene, seconds: float = 6.0) -> CameraPath:
 
 BUILTIN_LABELS: dict[str, str] = {
     "showroom": "Showroom",
+    "showroom-8": "Showroom with 8 lights",
     "showroom-100": "Showroom with 100 lights",
     "showroom-gi": "Showroom with indirect light",
     "texture-test": "Texture test",

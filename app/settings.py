@@ -444,6 +444,20 @@ class RenderSettings:
         choices=("off", "hard", "soft"),
         choice_labels={"off": "Off", "hard": "Hard edges", "soft": "Soft edges"},
     )
+    shadow_detail: str = _opt(
+        "half",
+        "Where the shadows are worked out: at every pixel, or at every second or fourth pixel "
+        "across and down and filled in between along the surfaces (faster with many lamps; "
+        "an edge may soften a little). The forward path and glass always use every pixel.",
+        label="Shadow detail",
+        paper="Screen-space shadow mask, depth-aware upsampling",
+        choices=("full", "half", "quarter"),
+        choice_labels={
+            "full": "Every pixel",
+            "half": "Every 2nd pixel",
+            "quarter": "Every 4th pixel",
+        },
+    )
     shadow_updates_per_frame: int = _opt(
         2,
         "How many lights may redraw their shadows in one frame after something moved; the "

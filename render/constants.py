@@ -19,6 +19,9 @@ MAX_LIGHTS = 1024
 # point light takes six tiles (cube faces), a spot or the sun one.
 MAX_SHADOW_TILES = 64
 SHADOW_ATLAS = 4096
+# The screen-space shadow mask (render/shadow_mask.py): this many lights' shadow factors per
+# sample, 8 bits each in two 32-bit words (shadow_mask.glsl).
+SHADOW_MASK_SLOTS = 8
 # Tiled light culling: tile edge in pixels, list length per tile, and the count that marks an
 # overflowing tile ("evaluate every light").
 LIGHT_TILE = 16
@@ -115,6 +118,7 @@ TEXTURE_UNITS = {
             "gb_sky",  # the G-buffer's sky visibility
             "shadow_atlas",  # the shadow maps' depth atlas (bound once per frame)
             "irradiance_cache",  # the photon map's irradiance cache (render/photons.py)
+            "shadow_mask",  # the shadow mask (render/shadow_mask.py)
         )
     )
 }

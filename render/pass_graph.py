@@ -33,6 +33,7 @@ from render.shaders import ShaderLibrary
 # The named resources passes hand each other (the contract's vocabulary).
 RESOURCES = {
     "shadow_maps": "the shadow maps' atlas and their uniform block (bound for every lighting)",
+    "shadow_mask": "per eye: up to 8 lights' shadow factors at every 2nd or 4th pixel",
     "depth": "per eye: G-buffer / forward depth",
     "normal": "per eye: world normal + roughness",
     "albedo": "per eye: albedo + metallic",

@@ -213,7 +213,7 @@ class GBufferPass(RenderPass):
 
 
 # What the deferred lighting uses when an earlier pass made it (deferred.glsl variants).
-LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map", "ao", "sky")
+LIGHTING_EXTRAS = ("tile_lists", "indirect", "photon_map", "ao", "sky", "shadow_mask")
 
 
 class LightingPass(RenderPass):
@@ -271,6 +271,9 @@ def lighting_defines(res: Resources) -> dict[str, object]:
     }
     if fused is not None:
         defines.update(INDIRECT_FUSED=True, **fused[1])
+    mask = res.get("shadow_mask")  # render/shadow_mask.py
+    if mask is not None:
+        defines.update(mask.defines())
     return defines
 
 
@@ -295,6 +298,8 @@ def deferred_inputs(
     use_tiles(prog, res, index)
     if res.get("ao") is not None:
         bind_texture(prog, "ao", res.get("ao")[index])
+    if res.get("shadow_mask") is not None:
+        res.get("shadow_mask").bind(prog, eye, index)
     set_uniforms(
         prog,
         {

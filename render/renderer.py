@@ -60,6 +60,7 @@ from render.passes import (
 from render.photons import PhotonPass
 from render.refine import RefinePass
 from render.shaders import ShaderLibrary
+from render.shadow_mask import ShadowMaskPass
 from render.shadows import ShadowPass
 from render.sky import DaylightPass, SkyPass, sky_key
 from render.upscale import render_size
@@ -75,6 +76,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     CpsLevelPass,
     PhotonPass,
     AmbientOcclusionPass,
+    ShadowMaskPass,
     LightingPass,
     CpsLightingPass,
     CpsFilterPass,
@@ -113,6 +115,7 @@ class Renderer:
     cps_levels = _Pass[CpsLevelPass]()
     photons = _Pass[PhotonPass]()
     ao = _Pass[AmbientOcclusionPass]()
+    shadow_mask = _Pass[ShadowMaskPass]()
     lighting = _Pass[LightingPass]()
     cps_lighting = _Pass[CpsLightingPass]()
     cps_filter = _Pass[CpsFilterPass]()
@@ -327,8 +330,10 @@ class Renderer:
         scene = self.gpu_scene
         if not r.ambient_estimate or scene is None:
             return float(r.ambient)
-        if self.photons.photons is not None and deferred(self.settings):
-            return float(r.ambient)
+        photons = self._by_name.get("photons")  # a renderer may run without the pass
+        if isinstance(photons, PhotonPass) and photons.photons is not None:
+            if deferred(self.settings):
+                return float(r.ambient)
         lights = self.frame_lights()
         sky = scene_sky(self.settings.sky, scene.scene) if self.settings.sky.enabled else None
         key = (list(lights), sky_key(sky) if sky is not None else None)
@@ -338,7 +343,12 @@ class Renderer:
                 own = scene.scene.ray_caster
                 caster = own if isinstance(own, RayCaster) else None
                 self._ambient_probe = (scene, AmbientProbe(scene.scene, caster))
-            sh = self.daylight.update_sky(sky).sh if sky is not None else None
+            daylight = self._by_name.get("daylight")
+            sh = (
+                daylight.update_sky(sky).sh
+                if sky is not None and isinstance(daylight, DaylightPass)
+                else None
+            )
             value = self._ambient_probe[1].estimate(lights, sh).ambient
             self._ambient = cached = (scene, key, value)
         return cached[2]

@@ -27,7 +27,13 @@ import numpy as np
 
 from app.camera import EyeView
 from app.scene import Light
-from render.constants import MAX_LIGHTS, MAX_SHADOW_TILES, SHADOW_ATLAS, TEXTURE_UNITS
+from render.constants import (
+    MAX_LIGHTS,
+    MAX_SHADOW_TILES,
+    SHADOW_ATLAS,
+    SHADOW_MASK_SLOTS,
+    TEXTURE_UNITS,
+)
 from render.gpu_scene import GpuScene, light_rows, spot_cosines
 from render.pass_graph import FrameContext, RenderPass, Resources, set_uniforms
 from render.shaders import ShaderLibrary
@@ -293,6 +299,7 @@ class ShadowPass(RenderPass):
         self.updates = 0
         self.pending = 0  # lights waiting for a redraw after this frame
         self.shadowed = 0  # lights with a map in use this frame
+        self.mask_slots: list[int] = []  # the lights of the shadow mask's slots, in order
 
     def configure(self, settings, scene, frame) -> bool:
         self.mode = MODES.get(settings.render.shadows, MODES["soft"])
@@ -369,6 +376,8 @@ class ShadowPass(RenderPass):
             f = moderngl.NEAREST if self.mode == MODES["hard"] else moderngl.LINEAR
             self.atlas.filter = (f, f)
         (self.atlas or self.dummy).use(TEXTURE_UNITS["shadow_atlas"])
+        # For the shadow mask (render/shadow_mask.py): its lights, and how many have shadows.
+        res.put("shadow_maps", (list(self.mask_slots) if self.mode else [], self.shadowed))
 
     def _within_tiles(
         self, wanted: dict[int, tuple[int, int]], lights: list[Light], eyes: list[EyeView]
@@ -466,15 +475,20 @@ class ShadowPass(RenderPass):
     def _upload(self, wanted: dict[int, tuple[int, int]]) -> None:
         info = np.zeros((MAX_LIGHTS, 4), np.int32)
         info[:, 0] = -1
+        info[:, 2] = -1  # no slot in the shadow mask
         matrices = np.zeros((MAX_SHADOW_TILES, 4, 4), np.float32)
         rects = np.zeros((MAX_SHADOW_TILES, 4), np.float32)
         texels = np.zeros((MAX_SHADOW_TILES, 4), np.float32)
         tile = 0
         self.shadowed = 0
-        for i in sorted(wanted):
+        self.mask_slots = []
+        for i in wanted:  # the most prominent first (_within_tiles): they get the mask's slots
             m = self.maps.get(i)
             if m is None or m.drawn_key is None or not m.matrices:
                 continue  # never drawn yet: no shadow this frame
+            if len(self.mask_slots) < SHADOW_MASK_SLOTS:
+                info[i, 2] = len(self.mask_slots)
+                self.mask_slots.append(i)
             info[i, :2] = (tile, len(m.tiles))
             for (x, y), mat in zip(m.tiles, m.matrices):
                 matrices[tile] = mat.T  # std140 mat4: columns

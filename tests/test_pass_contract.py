@@ -84,6 +84,16 @@ CASES = [
         ["gbuffer", "cps_levels", "lighting", "cps_mask", *DEFERRED[2:]],
     ),
     ({"cps.visualize": True}, 1, False, ["gbuffer", "cps_levels", *DEFERRED[1:]]),
+    # The screen-space shadow mask (render/shadow_mask.py), between the G-buffer and lighting.
+    ({"render.shadow_detail": "half"}, 1, False, ["gbuffer", "shadow_mask", *DEFERRED[1:]]),
+    (
+        {"render.shadow_detail": "quarter", "cps.mode": "cps", "cps.temporal": False},
+        1,
+        False,
+        ["gbuffer", "cps_levels", "shadow_mask", *CPS[2:]],
+    ),
+    ({"render.shadow_detail": "half", "render.shadows": "off"}, 1, False, DEFERRED),
+    ({"render.shadow_detail": "half", "render.path": "forward"}, 1, False, ["forward", *BASE]),
 ]
 
 
@@ -100,8 +110,10 @@ def test_each_pass_decides_and_the_list_is_what_the_old_renderer_ran(
         "cps.mode",
         "cps.temporal",
         "cps.visualize",
+        "render.shadows",
     ):
         s.set(key, defaults.get(key))
+    s.set("render.shadow_detail", "full")  # the cases before the mask; its own at the end
     s.set("render.ao", "off")  # the passes before ambient occlusion; its own: tests/test_ao.py
     for key, value in values.items():
         s.set(key, value)

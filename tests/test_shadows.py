@@ -21,6 +21,7 @@ from app.scene import Light, Material, Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings
 from assets.showroom import WINDOW_Z, MeshBuilder, build_showroom
+from render import shadow_mask
 from render.offscreen import OffscreenHost
 
 W, H = 640, 360  # both eyes: 320 x 360 each
@@ -75,6 +76,17 @@ def host():
     h.close()
 
 
+MASK_FROM = dict(shadow_mask.MIN_LIGHTS)
+
+
+@pytest.fixture(autouse=True)
+def mask_from_one_light(monkeypatch):
+    """The mask for every shadowed light count, so the few-light scenes here test it too (the
+    renderer's own threshold: test_the_mask_waits_for_enough_lights)."""
+    for mode in MASK_FROM:
+        monkeypatch.setitem(shadow_mask.MIN_LIGHTS, mode, 1)
+
+
 def frame(host: OffscreenHost, scene: Scene):
     session = Session(host.settings.copy())
     session.set_scene(scene)
@@ -121,50 +133,105 @@ def at(img, fi, world) -> float:
     ids=["point", "spot"],
 )
 @pytest.mark.parametrize("shadows", ["hard", "soft"])
-def test_the_floor_behind_a_box_is_dark_and_beside_it_bright(host, light, shadows):
-    img, fi = hdr(host, box_scene([light]), shadows)
+@pytest.mark.parametrize("detail", ["full", "half", "quarter"])
+def test_the_floor_behind_a_box_is_dark_and_beside_it_bright(host, light, shadows, detail):
+    """Per pixel (full) and from the screen-space mask (half, quarter) alike."""
+    img, fi = hdr(host, box_scene([light]), shadows, render__shadow_detail=detail)
+    assert host.renderer.shadow_mask.enabled == (detail != "full")
     lit, shadowed = at(img, fi, LIT), at(img, fi, SHADOWED)
     assert lit > 0.05
     assert shadowed < 0.02 * lit, (lit, shadowed)
     off, _ = hdr(host, box_scene([light]), "off")
     assert at(off, fi, SHADOWED) > 0.5 * lit  # the darkness is the shadow, not the light's reach
+    host.settings.set("render.shadow_detail", Settings().render.shadow_detail)
 
 
-def edge_profile(host, shadows: str) -> np.ndarray:
+def edge_profile(host, shadows: str, detail: str = "full") -> np.ndarray:
     """The shadow factor (picture / unshadowed picture) along a line across the shadow's edge."""
     light = Light(LIGHT_POS, (1, 1, 1), 20.0, 10.0)
-    img, fi = hdr(host, box_scene([light]), shadows)
+    img, fi = hdr(host, box_scene([light]), shadows, render__shadow_detail=detail)
+    host.settings.set("render.shadow_detail", Settings().render.shadow_detail)
     off, _ = hdr(host, box_scene([light]), "off")
     points = [(-1.2, 0.0, z) for z in np.linspace(0.0, 1.5, 80)]
     return np.array([at(img, fi, p) / max(at(off, fi, p), 1e-6) for p in points])
 
 
-def test_soft_shadows_have_a_graded_edge_and_hard_ones_do_not(host):
-    hard, soft = edge_profile(host, "hard"), edge_profile(host, "soft")
+@pytest.mark.parametrize("detail, crisp", [("full", 1), ("half", 2)])
+def test_soft_shadows_have_a_graded_edge_and_hard_ones_do_not(host, detail, crisp):
+    """Per pixel a hard edge is one sample of the line wide; through the mask (every 2nd pixel,
+    filled in between) at most two."""
+    hard, soft = edge_profile(host, "hard", detail), edge_profile(host, "soft", detail)
     for profile in (hard, soft):  # both go from full shadow to full light
         assert profile[0] < 0.02 and profile[-1] > 0.98
     between = lambda p: int(np.sum((p > 0.1) & (p < 0.9)))  # noqa: E731
-    assert between(hard) <= 1
+    assert between(hard) <= crisp
     assert between(soft) >= 2
 
 
 @pytest.mark.parametrize("shadows", ["hard", "soft"])
 @pytest.mark.parametrize("kind", ["point", "spot"])
-def test_a_flat_lit_floor_has_no_acne(host, shadows, kind):
-    """Shadows on a floor nothing stands on change nothing: no speckles, no stripes."""
+@pytest.mark.parametrize("detail", ["full", "half"])
+def test_a_flat_lit_floor_has_no_acne(host, shadows, kind, detail):
+    """Shadows on a floor nothing stands on change nothing: no speckles, no stripes (per pixel
+    and through the mask)."""
     light = (
         Light((0.0, 2.5, 0.0), (1, 1, 1), 20.0, 10.0)
         if kind == "point"
         else spot_towards((-0.5, 0.0, 0.5), inner=40.0, outer=60.0)
     )
     scene = box_scene([light], box=False)
-    img, fi = hdr(host, scene, shadows)
+    img, fi = hdr(host, scene, shadows, render__shadow_detail=detail)
+    host.settings.set("render.shadow_detail", Settings().render.shadow_detail)
     off, _ = hdr(host, scene, "off")
     top, left = pixel(fi, (-2.0, 0.0, -1.0))
     bottom, right = pixel(fi, (1.0, 0.0, 1.5))
     ratio = img[top:bottom, left:right] / np.maximum(off[top:bottom, left:right], 1e-6)
     assert ratio.size > 500
     assert ratio.min() > 0.99 and float(ratio.std()) < 0.002
+
+
+def mask_lights(count: int) -> list[Light]:
+    """The box's light and ``count - 1`` more around the room, near enough to matter."""
+    lights = [Light(LIGHT_POS, (1, 1, 1), 20.0, 10.0)]
+    for k in range(count - 1):
+        a = 2.0 * math.pi * k / max(count - 1, 1)
+        lights.append(Light((3.0 * math.cos(a), 1.5, 3.0 * math.sin(a)), (1, 1, 1), 4.0, 4.0))
+    return lights
+
+
+@pytest.mark.parametrize("shadows", ["hard", "soft"])
+@pytest.mark.parametrize("count", [3, 8, 10])
+def test_the_shadow_mask_gives_the_per_pixel_picture(host, shadows, count):
+    """The mask (every 2nd pixel, filled in along the surfaces) against every pixel's own
+    lookups, with up to 8 lights in the mask and beyond (10: two light per pixel)."""
+    scene = box_scene(mask_lights(count))
+    full, fi = hdr(host, scene, shadows, render__shadow_detail="full")
+    half, _ = hdr(host, scene, shadows, render__shadow_detail="half")
+    mask = host.renderer.shadow_mask
+    assert mask.enabled and mask.lights == min(count, 8)
+    assert host.renderer.shadows.shadowed == count
+    host.settings.set("render.shadow_detail", Settings().render.shadow_detail)
+    diff = np.abs(half - full) / max(float(full.max()), 1e-6)
+    assert float(diff.mean()) < 0.002, float(diff.mean())
+    assert float(np.mean(diff > 0.05)) < 0.01  # a few pixels along the shadows' edges
+    off, _ = hdr(host, scene, "off")
+    # The box's shadow is there (the other lamps light the spot too).
+    assert at(off, fi, SHADOWED) - at(full, fi, SHADOWED) > 0.05
+    assert at(half, fi, SHADOWED) == pytest.approx(at(full, fi, SHADOWED), abs=0.01)
+
+
+def test_the_mask_waits_for_enough_lights(host, monkeypatch):
+    """Below ``MIN_LIGHTS`` shadowed lights the lighting looks them up per pixel (today the
+    mask pays from the first light, hard or soft); shadowed either way."""
+    for mode, count in MASK_FROM.items():
+        monkeypatch.setitem(shadow_mask.MIN_LIGHTS, mode, count)
+    assert MASK_FROM == {"hard": 1, "soft": 1}
+    monkeypatch.setitem(shadow_mask.MIN_LIGHTS, "hard", 3)  # as a threshold would
+    for shadows, count, used in (("hard", 2, 0), ("hard", 3, 3), ("soft", 1, 1)):
+        img, fi = hdr(host, box_scene(mask_lights(count)), shadows)
+        assert host.renderer.shadow_mask.lights == used, (shadows, count)
+        off, _ = hdr(host, box_scene(mask_lights(count)), "off")
+        assert at(off, fi, SHADOWED) - at(img, fi, SHADOWED) > 0.05  # shadowed either way
 
 
 def test_a_static_scene_draws_each_map_once_and_a_moved_light_again(host):

@@ -223,6 +223,19 @@ def test_lights() -> None:
             assert 15 <= n <= 35
 
 
+def test_the_eight_lamp_showroom_is_built_in() -> None:
+    """``showroom-8``: the bench's scene for issue 14's target (8 shadowed lamps)."""
+    from app import scenes
+
+    eight = scenes.resolve("showroom-8")
+    assert eight.name == "showroom-8" and eight.source == "built-in"
+    assert len(eight.lights) == 8
+    assert all(light.casts_shadows and light.kind == "point" for light in eight.lights)
+    assert scenes.default_path(eight).scene == "showroom"  # the showroom's walkthrough
+    ratio = shell_irradiance(eight.lights) / shell_irradiance(build_showroom().lights)
+    assert 0.9 < ratio < 1.1, ratio
+
+
 def test_spawn(room: Scene, caster: RayCaster) -> None:
     x, y, z = room.spawn.position
     assert abs(x) < HX - CLEARANCE_M and abs(z) < HZ - CLEARANCE_M

@@ -34,7 +34,7 @@ def _common(
         "--scene",
         default=None if scene_required else default,
         required=scene_required,
-        help="built-in scene (showroom, showroom-100, showroom-gi, texture-test, "
+        help="built-in scene (showroom, showroom-8, showroom-100, showroom-gi, texture-test, "
         "tcr-cube, corridor) or a model file (.gltf .glb .obj .ply)",
     )
     p.add_argument(

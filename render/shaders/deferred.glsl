@@ -37,6 +37,7 @@ vec3 light_texel(ivec2 p) {
     vec3 P = world.xyz / world.w;
     vec3 V = safe_normalize(u_eye - P, vec3(0.0, 0.0, 1.0));
     vec3 N = safe_normalize(normal.xyz, vec3(0.0, 1.0, 0.0));
+    use_shadow_mask_of(p, depth, N);
 #ifdef SKY
     g_sky_visibility = texelFetch(u_gb_sky, p, 0).r;
 #endif

@@ -28,6 +28,7 @@ void use_tile_of(ivec2 pixel) {
 }
 #endif
 #include "shadows.glsl"
+#include "shadow_mask.glsl"
 uniform float u_light_scale;  // brightness setting times exposure-independent scale
 uniform float u_ambient;
 #include "sky.glsl"
@@ -81,7 +82,7 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
         }
         float ndl = dot(N, L);
         if (ndl <= 0.0) continue;
-        falloff *= shadow_factor(i, P, N, L, dist);
+        falloff *= masked_shadow(i, P, N, L, dist);
         vec3 H = safe_normalize(L + V, N);
         float ndh = max(dot(N, H), 0.0);
         float spec = spec_norm * exp2(shininess * log2(max(ndh, 1e-6)));

@@ -5,7 +5,8 @@
 
 layout(std140, binding = 1) uniform Shadows {
     ivec4 shadow_mode;                      // x: 0 off, 1 hard, 2 soft; y: atlas size in texels
-    ivec4 shadow_light[MAX_LIGHTS];         // per light: x first tile (-1: none), y tile count
+    ivec4 shadow_light[MAX_LIGHTS];         // per light: x first tile (-1: none), y tile count,
+                                            // z slot in the shadow mask (-1: none)
     mat4 shadow_matrix[MAX_SHADOW_TILES];   // world -> atlas (u, v, depth) after the divide
     vec4 shadow_rect[MAX_SHADOW_TILES];     // the tile in atlas uv: min xy, max xy
     vec4 shadow_texel[MAX_SHADOW_TILES];    // x texel in uv; y texel in metres (per metre of

@@ -1,0 +1,174 @@
+"""The screen-space shadow mask: the lights' shadow factors once per frame, at reduced resolution.
+
+Without it, the deferred lighting looks up every shadowed light's map at every pixel (four
+bilinear comparisons each for soft shadows); on llvmpipe both sides of a branch run, so a light
+out of a pixel's reach still pays for its lookups, and eight shadowed lamps cost 2.3x the
+unshadowed frame. This pass works out, before the lighting, the shadow factor of up to
+``SHADOW_MASK_SLOTS`` (8) shadowed lights at every 2nd (``render.shadow_detail=half``) or 4th
+(``quarter``) pixel across and down, each only for the lights whose range, cone and side reach
+the pixel's surface (shadow_mask.frag.glsl). The factors (8 bits each) and the sample's view
+distance go into one RGBA32UI texel; the lighting reads a pixel's factors once, upsampled from
+the four samples around it with bilinear weights times closeness in depth and orientation
+(shadow_mask.glsl), and its light loop does no map lookups for those lights. A light's slot
+travels in the Shadows block (``shadow_light[i].z``, render/shadows.py, most prominent lights
+first); with more than eight shadowed lights the others keep their per-pixel lookups (the
+SHADOW_MASK 2 variant).
+
+Deferred path only, full rate and coarse pixel shading alike (both light through
+deferred.glsl's ``light_texel``); the forward path and blended glass light per pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from app.camera import EyeView
+from render.constants import SHADOW_MASK_SLOTS
+from render.pass_graph import (
+    FrameContext,
+    RenderPass,
+    Resources,
+    bind_texture,
+    set_uniforms,
+)
+from render.shaders import ShaderLibrary
+
+STEPS = {"half": 2, "quarter": 4}  # render.shadow_detail -> the sample spacing in pixels
+# Shadowed lights from which the mask is used (render.shadows -> count). Measured on llvmpipe,
+# 2x640x720, on a quiet machine: it pays from the first light, hard or soft (the shared living
+# room, one lamp: hard 1.31x unshadowed per pixel, 1.23x with the mask; soft 1.33x and 1.27x).
+MIN_LIGHTS = {"hard": 1, "soft": 1}
+
+
+@dataclass
+class MaskFrame:
+    """What the lighting needs of this frame's mask (``res.get("shadow_mask")``)."""
+
+    textures: list[moderngl.Texture]  # per eye
+    step: int  # samples every ``step`` pixels across and down
+    slots: int  # slots in use, 4 or 8
+    complete: bool  # every shadowed light has a slot (no per-pixel lookups left)
+
+    def defines(self) -> dict[str, object]:
+        return {
+            "SHADOW_MASK": 1 if self.complete else 2,
+            "SHADOW_MASK_SLOTS_USED": self.slots,
+            "SHADOW_MASK_STEP": self.step,
+        }
+
+    def bind(
+        self, prog: moderngl.Program | moderngl.ComputeShader, eye: EyeView, index: int
+    ) -> None:
+        bind_texture(prog, "shadow_mask", self.textures[index])
+        set_uniforms(prog, {"u_mask_depth": depth_terms(eye)})
+
+
+def depth_terms(eye: EyeView) -> tuple[float, float]:
+    """(a, b) with view distance = b / (ndc_z + a) for the eye's perspective projection."""
+    return float(eye.projection[2, 2]), float(eye.projection[2, 3])
+
+
+def mask_size(size: tuple[int, int], step: int) -> tuple[int, int]:
+    """The mask's size for an eye of ``size``: one sample per ``step`` pixels, rounded up."""
+    return max(1, -(-size[0] // step)), max(1, -(-size[1] // step))
+
+
+class MaskTargets:
+    """One eye's mask (RGBA32UI: two words of 8-bit factors, the view distance, the normal)
+    and its framebuffer."""
+
+    def __init__(self, ctx: moderngl.Context, size: tuple[int, int]) -> None:
+        self.size = size
+        self.texture = ctx.texture(size, 4, dtype="u4")
+        self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.texture.repeat_x = self.texture.repeat_y = False
+        self.fbo = ctx.framebuffer([self.texture])
+
+    def release(self) -> None:
+        self.fbo.release()
+        self.texture.release()
+
+
+class ShadowMaskPass(RenderPass):
+    """Per eye, before the lighting: the shadow factors of up to 8 shadowed lights."""
+
+    name = "shadow_mask"
+    reads = ("shadow_maps", "depth", "normal")
+    writes = ("shadow_mask",)
+
+    def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
+        super().__init__(ctx, shaders, res)
+        self.step = STEPS["half"]
+        self.targets: list[MaskTargets] = []
+        self.lights = 0  # lights in the mask last frame
+        self.min_lights = 1
+
+    def configure(self, settings, scene, frame) -> bool:
+        r = settings.render
+        self.step = STEPS.get(r.shadow_detail, 0)
+        self.min_lights = MIN_LIGHTS.get(r.shadows, 1)
+        return (
+            r.path == "deferred"
+            and r.shadows != "off"
+            and self.step > 0
+            and any(light.casts_shadows for light in scene.light_list)
+        )
+
+    def _ensure(self, eye_size: tuple[int, int]) -> None:
+        size = mask_size(eye_size, self.step)
+        if len(self.targets) == 2 and self.targets[0].size == size:
+            return
+        for t in self.targets:
+            t.release()
+        self.targets = [MaskTargets(self.ctx, size) for _ in range(2)]
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        slots, shadowed = res.get("shadow_maps", ([], 0))
+        self.samples = 0
+        self.lights = len(slots) if len(slots) >= self.min_lights else 0
+        if not self.lights:
+            return  # too few lights have a map this frame: the lighting looks them up itself
+        self._ensure(res.targets[0].size)
+        used = 4 if len(slots) <= 4 else SHADOW_MASK_SLOTS
+        lights = np.full(SHADOW_MASK_SLOTS, -1, np.int32)
+        lights[: len(slots)] = slots
+        prog = self.shaders.program(
+            "fullscreen.vert.glsl",
+            "shadow_mask.frag.glsl",
+            {"SHADOW_MASK_SLOTS_USED": used, "SHADOW_MASK_STEP": self.step},
+        )
+        frame.scene.light_buffer.bind_to_uniform_block(0)
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        for eye, tgt, own in zip(frame.eyes, res.targets, self.targets):
+            own.fbo.use()
+            bind_texture(prog, "gb_depth", tgt.depth)
+            bind_texture(prog, "gb_normal", tgt.normal)
+            set_uniforms(
+                prog,
+                {
+                    "u_inv_view_projection": eye.inverse_view_projection,
+                    "u_size": tgt.size,
+                    "u_mask_lights": lights.tobytes(),
+                    "u_mask_depth": depth_terms(eye),
+                },
+            )
+            self.fullscreen(prog)
+            self.samples += own.size[0] * own.size[1]
+        res.put(
+            "shadow_mask",
+            MaskFrame(
+                [own.texture for own in self.targets],
+                self.step,
+                used,
+                complete=shadowed <= len(slots),
+            ),
+        )
+
+    def release(self) -> None:
+        super().release()
+        for t in self.targets:
+            t.release()
+        self.targets = []
