@@ -514,6 +514,22 @@ class RenderSettings:
         choices=("edge", "bilinear"),
         choice_labels={"edge": "Edge-preserving (FSR 1 style)", "bilinear": "Plain (bilinear)"},
     )
+    # RCAS sharpening after EASU (render/upscale.py, rcas.glsl): 0 off, 1 FSR's strongest
+    # (0 stops); the default 0.9 is FSR's default 0.2 stops (stops = 2 x (1 - value)).
+    sharpen: float = _opt(
+        0.9,
+        "How much a picture drawn at a lower resolution is sharpened after enlarging it with "
+        "the edge-preserving filter, without bright or dark fringes at edges; 0 turns it off. "
+        "Only acts when the drawing resolution is below 100%.",
+        label="Sharpening",
+        unit="%",
+        paper="AMD FSR 1: RCAS, sharpness 2 x (1 - value) stops",
+        lo=0.0,
+        hi=1.0,
+        decimals=0,
+        step=5.0,
+        scale=100.0,
+    )
     # Progressive refinement (app/refine.py). "auto" is on in the window (a display refresh
     # rate is known) and off in headless hosts, so renders, benches and tests stay the same.
     refine: str = _opt(

@@ -32,7 +32,7 @@ from render.pass_graph import (
     uniform,
 )
 from render.shaders import ShaderLibrary
-from render.upscale import upscale_defines
+from render.upscale import rcas_con, sharpen_stops, upscale_defines
 
 log = logging.getLogger(__name__)
 BACKGROUND = (0.02, 0.02, 0.025)
@@ -574,6 +574,13 @@ class PresentPass(RenderPass):
         self.visualize = False
         self.tone: dict[str, object] = {}
         self.upscaler = "easu"  # render.upscale.UPSCALERS: how eyes drawn smaller are enlarged
+        self.sharpen = 0.0  # render.sharpen: RCAS after EASU, 0 off
+        # Where RCAS runs: "pass", its own pass at the drawn size before EASU (measured the
+        # cheapest: tests/measure_rcas.py), "folded" into EASU's taps (no extra target) or
+        # "after" EASU at the view's size as in FSR (an intermediate target per eye).
+        self.rcas_placement = "pass"
+        self._sharpened = False  # this frame's eyes were sharpened into _display[2:]
+        self._after: list[tuple[moderngl.Texture, moderngl.Framebuffer]] = []
         self._display: list[tuple[moderngl.Texture, moderngl.Framebuffer]] = []
 
     @staticmethod
@@ -587,6 +594,7 @@ class PresentPass(RenderPass):
         self.visualize = settings.cps.visualize
         self.tone = self.defines(settings)
         self.upscaler = "bilinear" if settings.render.upscaler == "bilinear" else "easu"
+        self.sharpen = float(settings.render.sharpen)
         return True
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
@@ -595,7 +603,7 @@ class PresentPass(RenderPass):
         show_reuse = bool(res.get("show_reuse")) and indirect is not None
         src = res.targets[0].size
         w, h = frame.view_size or src
-        scaled = upscale_defines(src, (w, h), self.upscaler)
+        scaled = upscale_defines(src, (w, h), self.upscaler, self.sharpen)
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "present.frag.glsl",
@@ -625,7 +633,16 @@ class PresentPass(RenderPass):
                 uniform(prog, "u_paint_reuse").value = index
             self.fullscreen(prog)
         if scaled:
-            self._upscale(frame, scaled, src, (w, h))
+            if scaled.get("RCAS") and self.rcas_placement == "after":  # as FSR: a view-size pass
+                self._upscale(
+                    frame, {**scaled, "RCAS": False}, src, (w, h), self._ensure_after((w, h))
+                )
+                self._sharpen_after(frame, (w, h))
+            else:
+                if scaled.get("RCAS") and self.rcas_placement == "pass":
+                    self._sharpen(src)
+                    scaled = {**scaled, "RCAS": False}
+                self._upscale(frame, scaled, src, (w, h))
         frame.out.viewport = (x, y, 2 * w, h)
 
     def _ensure_display(self, size: tuple[int, int]) -> None:
@@ -633,11 +650,26 @@ class PresentPass(RenderPass):
         if self._display and self._display[0][0].size == size:
             return
         self._release_display()
-        for _ in range(2):
+        for _ in range(4):  # per eye the tone-mapped colour, then (render.sharpen) sharpened
             tex = self.ctx.texture(size, 4)
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             tex.repeat_x = tex.repeat_y = False
             self._display.append((tex, self.ctx.framebuffer([tex])))
+
+    def _sharpen(self, src: tuple[int, int]) -> None:
+        """RCAS per eye at the drawn size, into the second pair of targets (render.sharpen)."""
+        stops = sharpen_stops(self.sharpen)
+        prog = self.shaders.program("fullscreen.vert.glsl", "rcas.frag.glsl")
+        uniform(prog, "u_src_size").value = src
+        uniform(prog, "u_origin").value = (0, 0)
+        uniform(prog, "u_rcas_con").value = rcas_con(stops if stops is not None else 2.0)
+        for index in range(2):
+            fbo = self._display[2 + index][1]
+            fbo.use()
+            fbo.viewport = (0, 0, *src)
+            bind_texture(prog, "eye_color", self._display[index][0])
+            self.fullscreen(prog)
+        self._sharpened = True
 
     def _upscale(
         self,
@@ -645,23 +677,62 @@ class PresentPass(RenderPass):
         defines: dict[str, object],
         src: tuple[int, int],
         dst: tuple[int, int],
+        into: list[moderngl.Framebuffer] | None = None,
     ) -> None:
         prog = self.shaders.program("fullscreen.vert.glsl", "upscale.frag.glsl", defines)
         frame.out.use()
-        x, y = frame.out_origin
+        x, y = (0, 0) if into else frame.out_origin
         set_uniforms(prog, {"u_src_size": src, "u_dst_size": dst})
-        for index, (tex, _fbo) in enumerate(self._display):
+        stops = sharpen_stops(self.sharpen)
+        if defines.get("RCAS") and stops is not None:
+            uniform(prog, "u_rcas_con").value = rcas_con(stops)
+        first = 2 if self._sharpened else 0
+        self._sharpened = False
+        for index, (tex, _fbo) in enumerate(self._display[first : first + 2]):
+            origin = (x + index * dst[0], y) if not into else (0, 0)
+            target = into[index] if into else frame.out
+            target.use()
+            target.viewport = (*origin, *dst)
+            uniform(prog, "u_origin").value = origin
+            bind_texture(prog, "eye_color", tex)
+            self.fullscreen(prog)
+
+    def _ensure_after(self, size: tuple[int, int]) -> list[moderngl.Framebuffer]:
+        """Per eye EASU's output at the view's size, for RCAS placed after it ("after")."""
+        if not self._after or self._after[0][0].size != size:
+            self._release_after()
+            for _ in range(2):
+                tex = self.ctx.texture(size, 4)
+                tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                self._after.append((tex, self.ctx.framebuffer([tex])))
+        return [fbo for _tex, fbo in self._after]
+
+    def _sharpen_after(self, frame: FrameContext, dst: tuple[int, int]) -> None:
+        stops = sharpen_stops(self.sharpen)
+        prog = self.shaders.program("fullscreen.vert.glsl", "rcas.frag.glsl")
+        uniform(prog, "u_src_size").value = dst
+        uniform(prog, "u_rcas_con").value = rcas_con(stops if stops is not None else 2.0)
+        frame.out.use()
+        x, y = frame.out_origin
+        for index, (tex, _fbo) in enumerate(self._after):
             origin = (x + index * dst[0], y)
             frame.out.viewport = (*origin, *dst)
             uniform(prog, "u_origin").value = origin
             bind_texture(prog, "eye_color", tex)
             self.fullscreen(prog)
 
+    def _release_after(self) -> None:
+        for tex, fbo in self._after:
+            fbo.release()
+            tex.release()
+        self._after.clear()
+
     def _release_display(self) -> None:
         for tex, fbo in self._display:
             fbo.release()
             tex.release()
         self._display.clear()
+        self._release_after()
 
     def release(self) -> None:
         super().release()
