@@ -515,12 +515,15 @@ class RenderSettings:
         choice_labels={"edge": "Edge-preserving (FSR 1 style)", "bilinear": "Plain (bilinear)"},
     )
     # RCAS sharpening after EASU (render/upscale.py, rcas.glsl): 0 off, 1 FSR's strongest
-    # (0 stops); the default 0.9 is FSR's default 0.2 stops (stops = 2 x (1 - value)).
+    # (0 stops); 0.9 is FSR's default 0.2 stops (stops = 2 x (1 - value)). Off by default:
+    # measured (tests/measure_rcas.py, showroom at 0.67 and 0.5), sharpening moves the frame
+    # further from the full-resolution one (FLIP 0.0585 -> 0.0638 at 0.67) for 2-3 ms more.
     sharpen: float = _opt(
-        0.9,
+        0.0,
         "How much a picture drawn at a lower resolution is sharpened after enlarging it with "
-        "the edge-preserving filter, without bright or dark fringes at edges; 0 turns it off. "
-        "Only acts when the drawing resolution is below 100%.",
+        "the edge-preserving filter, without bright or dark fringes at edges; 0 (the default) "
+        "turns it off: sharper, but further from the full-resolution picture. Only acts when "
+        "the drawing resolution is below 100%.",
         label="Sharpening",
         unit="%",
         paper="AMD FSR 1: RCAS, sharpness 2 x (1 - value) stops",
