@@ -31,6 +31,11 @@ with ``p = clamp(max(rho), 0.05, 0.95)`` then decides whether the path goes on w
 incoming ray (every surface is two-sided, as the renderer draws it). Specular reflection is not
 traced: a metal's photons are stored where they land, then absorbed (its diffuse rho is 0).
 
+Surfaces that cast no shadow in the renderer (``render/shadows.py casts``: glowing ones, such as
+a pane that shows the sky beyond a window or a lamp's shade, and blended glass) let photons
+through, as they let the renderer's direct light and the sky (``app/sky_light.py``) through: a
+ray that hits one goes on behind it (:class:`_SeeThrough`). They still emit.
+
 All random numbers come from ``np.random.default_rng(seed)`` in a fixed order and embree answers
 are deterministic, so one seed and one scene give byte-identical photon maps.
 """
@@ -65,6 +70,8 @@ LUMA = np.array([0.2126, 0.7152, 0.0722])
 P_MIN, P_MAX = 0.05, 0.95
 #: Offset of a new ray's origin off its surface, in units of the scene's bounds diagonal.
 OFFSET_SCALE = 1e-4
+# A ray goes through at most this many see-through surfaces (both sides of a pane: 2 each).
+PASS_THROUGH = 8
 #: Vertex normals this close to the triangle's plane do not tell an emitter's front face.
 FRONT_MIN_COS = 0.1
 
@@ -117,6 +124,7 @@ def trace_photons(
     if caster is None:
         caster = RayCaster(tris, owner)
     geo = _Geometry.build(scene, caster, owner[finite], vnormal[finite], notes)
+    caster = _SeeThrough.around(caster, _see_through_meshes(scene)[owner[finite]], geo.offset)
     sources = _light_sources(scene, geo, notes)
     day = _daylight_sources(scene, geo, caster, daylight, seed, notes)
     n_lamp = 0 if sources is None else len(sources.power_luma)
@@ -344,6 +352,58 @@ def _diagonal(points: np.ndarray) -> float:
         return 1.0
     diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     return diag if math.isfinite(diag) and diag > 0.0 else 1.0
+
+
+def _see_through_meshes(scene: Scene) -> np.ndarray:
+    """Per mesh: casts no shadow in the renderer (glowing or blended), so light goes through."""
+    out = np.zeros(len(scene.meshes), bool)
+    for i, m in enumerate(scene.meshes):
+        if 0 <= m.material < len(scene.materials):
+            mat = scene.materials[m.material]
+            emissive = np.nan_to_num(np.asarray(mat.emissive, np.float64)[:3], nan=0.0)
+            out[i] = bool((emissive > 0.0).any()) or mat.alpha_mode == "BLEND"
+    return out
+
+
+class _SeeThrough:
+    """A ray caster that lets the see-through triangles (``passes``) through: a ray that hits
+    one is cast again from just behind it, up to PASS_THROUGH times. Distances stay measured
+    from the ray's origin along its unit direction."""
+
+    def __init__(self, caster: RayCaster, passes: np.ndarray, offset: float) -> None:
+        self.caster = caster
+        self.passes = passes
+        self.offset = max(float(offset), 1e-9)
+        self.tri = caster.tri
+
+    @staticmethod
+    def around(caster: RayCaster, passes: np.ndarray, offset: float) -> RayCaster:
+        """``caster`` itself when nothing is see-through (no second casts to pay for)."""
+        if len(passes) != len(caster.tri) or not passes.any():
+            return caster
+        return _SeeThrough(caster, passes, offset)  # type: ignore[return-value]
+
+    def cast_triangles(
+        self, origins, directions, t_max: float = math.inf
+    ) -> tuple[np.ndarray, np.ndarray]:
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        d = np.asarray(directions, np.float64).reshape(-1, 3)
+        dist, tri = self.caster.cast_triangles(o, d, t_max)
+        norm = np.linalg.norm(d, axis=1)
+        unit = d / np.where(norm > 0.0, norm, 1.0)[:, None]
+        for _ in range(PASS_THROUGH):
+            through = tri >= 0
+            through[through] = self.passes[tri[through]]
+            if not through.any():
+                break
+            idx = np.flatnonzero(through)
+            start = dist[idx] + self.offset
+            more, hit = self.caster.cast_triangles(o[idx] + unit[idx] * start[:, None], unit[idx])
+            total = start + more
+            ok = (hit >= 0) & (total <= t_max)
+            dist[idx] = np.where(ok, total, np.inf)
+            tri[idx] = np.where(ok, hit, -1)
+        return dist, tri
 
 
 @dataclass

@@ -252,3 +252,25 @@ def test_window_traces_daylight_and_again_when_daylight_is_turned_off(qtbot):
     qtbot.waitUntil(lambda: shown(False), timeout=20000)
     assert w._photons_shown.power.tobytes() == lamps_only.power.tobytes()
     w.close()
+
+
+@pytest.mark.parametrize(
+    "pane",
+    [
+        Material("sky seen through the window", (1, 1, 1, 1), emissive=(0.01, 0.01, 0.01)),
+        Material("glass", (0.9, 0.95, 1.0, 0.2), alpha_mode="BLEND"),
+    ],
+    ids=["glowing pane", "blended glass"],
+)
+def test_a_pane_in_the_window_lets_the_daylight_in(pane: Material):
+    """A window glazed with a glowing pane (the sky beyond it) or with glass: both cast no
+    shadow in the renderer, and the photons' daylight comes in as through the open window."""
+    open_room = trace_photons(_room(), 60_000, seed=3, daylight=_sun_only())
+    glazed = _room()
+    (wy0, wy1), (wz0, wz1) = WINDOW_Y, WINDOW_Z
+    glazed.materials.append(pane)
+    glazed.meshes.append(_rect_x(HI[0], wy0, wy1, wz0, wz1, len(glazed.materials) - 1))
+    photons = trace_photons(glazed, 60_000, seed=3, daylight=_sun_only())
+    assert not any("no window or opening" in note for note in photons.notes)
+    ceiling, reference = _near(photons, HI[1]) @ dp.LUMA, _near(open_room, HI[1]) @ dp.LUMA
+    assert ceiling == pytest.approx(reference, rel=0.1)
