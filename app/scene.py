@@ -158,6 +158,9 @@ class Scene:
     # A RayCaster over triangles() with triangle indices as owners, left by the loader so the
     # session does not build embree's hierarchy a second time; None: build one when needed.
     ray_caster: Any = field(default=None, repr=False, compare=False)
+    # The ambient estimate's scene part (app.ambient.probe_for), found once: the window's loader
+    # finds it on its worker thread so that the first frame does not wait for it.
+    ambient_probe: Any = field(default=None, repr=False, compare=False)
 
     @property
     def triangle_count(self) -> int:
@@ -226,6 +229,7 @@ class Scene:
             warnings=notes,
             # new mesh arrays: a cached caster may not match them
             ray_caster=None if geometry else self.ray_caster,
+            ambient_probe=None,  # of other meshes and materials
         )
 
 

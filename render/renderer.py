@@ -17,7 +17,7 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
-from app.ambient import AmbientProbe
+from app.ambient import AmbientProbe, probe_for
 from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import Governor, apply_overrides
@@ -342,7 +342,7 @@ class Renderer:
             if self._ambient_probe is None or self._ambient_probe[0] is not scene:
                 own = scene.scene.ray_caster
                 caster = own if isinstance(own, RayCaster) else None
-                self._ambient_probe = (scene, AmbientProbe(scene.scene, caster))
+                self._ambient_probe = (scene, probe_for(scene.scene, caster))
             daylight = self._by_name.get("daylight")
             sh = (
                 daylight.update_sky(sky).sh

@@ -155,3 +155,37 @@ def test_typing_a_bad_unit_scale_is_refused_in_the_status_line(window):
     combo.setEditText("centimetres (0.01)")  # an entry's label means its value
     combo.lineEdit().editingFinished.emit()
     assert window.settings.scene.unit_scale == "0.01"
+
+
+def test_the_ambient_estimate_is_found_while_loading_not_in_the_first_frame(
+    window, qtbot, monkeypatch
+):
+    """The estimate's scene part (1.6 s on a 380k-triangle room) is found on the loader's
+    worker thread, under the progress dialog; the first frame reads it."""
+    import threading
+
+    import app.ambient
+
+    threads: list[str] = []
+    real = app.ambient.AmbientProbe.__init__
+
+    def probe(self, *a, **k):
+        threads.append(threading.current_thread().name)
+        real(self, *a, **k)
+
+    monkeypatch.setattr(app.ambient.AmbientProbe, "__init__", probe)
+    window.load("showroom")
+    window.wait_for_load()
+    window.view.grabFramebuffer()  # a frame with the scene: the renderer asks for the estimate
+    scene = window.session.scene
+    assert scene is not None and scene.ambient_probe is not None
+    assert threads and threading.main_thread().name not in threads  # only on the worker
+    assert window.view.renderer.ambient_term() > 0.0  # from the probe found while loading
+    assert len(threads) == 1
+    # With the estimate off nothing is found, neither while loading nor in a frame.
+    threads.clear()
+    window.settings.set("render.ambient_estimate", False)
+    window.load("corridor")
+    window.wait_for_load()
+    window.view.grabFramebuffer()
+    assert not threads and window.session.scene.ambient_probe is None

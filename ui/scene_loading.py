@@ -20,9 +20,11 @@ from PyQt6.QtCore import Qt
 from PyQt6.QtWidgets import QApplication, QFileDialog, QProgressDialog
 
 from app import scenes
+from app.ambient import probe_for
 from app.loaders import SUPPORTED_EXTENSIONS, LoadOptions, SceneLoadError
 from app.paths import CameraPath
 from app.progress import LoadCancelled, Progress
+from app.raycast import RayCaster
 from app.scene import Scene
 from render.texture_stream import prepare_textures
 from ui import window_state
@@ -55,7 +57,8 @@ class SceneLoading:
         progress = Progress(report, threading.Event())
         dialog.canceled.connect(progress.cancel.set)
         options = LoadOptions.from_settings(self.settings.scene)
-        future = self._loader.submit(_load_with_session, name_or_path, options, progress)
+        estimate = bool(self.settings.render.ambient_estimate)
+        future = self._loader.submit(_load_with_session, name_or_path, options, progress, estimate)
         self._loading = _Loading(future, name_or_path, dialog, report, progress, time.monotonic())
         QApplication.setOverrideCursor(Qt.CursorShape.BusyCursor)  # at once, before the dialog
         self.view.set_busy(True)
@@ -191,9 +194,15 @@ class _Loading:
 
 
 def _load_with_session(
-    name: str, options: LoadOptions, progress: Progress
+    name: str, options: LoadOptions, progress: Progress, estimate: bool = False
 ) -> tuple[Scene, CameraPath]:
     scene = scenes.resolve(name, options, progress.span(0.0, 0.85))
     # Texture pyramids are CPU work: built here, so the UI thread only uploads them.
-    prepare_textures(scene.textures, progress.span(0.85, 1.0))
+    prepare_textures(scene.textures, progress.span(0.85, 0.95))
+    if estimate:  # the ambient estimate's scene part, here and not in a frame
+        progress.span(0.95, 1.0).report(0.0, "Estimating the light between surfaces")
+        try:
+            probe_for(scene, scene.ray_caster if isinstance(scene.ray_caster, RayCaster) else None)
+        except Exception:  # noqa: BLE001 - the renderer tries again (and reports) at the frame
+            log.exception("ambient estimate for %s failed", name)
     return scene, scenes.default_path(scene)
