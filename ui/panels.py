@@ -31,16 +31,8 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
-from app.settings import (
-    SECTION_TITLES,
-    Settings,
-    SettingsError,
-    format_number,
-    range_text,
-    shown_range,
-    shows_integer,
-    with_unit,
-)
+from app.settings import SECTION_TITLES, Settings, SettingsError
+from app.settings_fields import format_number, range_text, shown_range, shows_integer, with_unit
 
 log = logging.getLogger(__name__)
 
