@@ -20,7 +20,7 @@ import numpy as np
 from app.frame import FrameInput
 from app.scene import Scene
 from render.ab_split import ABSplitPass, SplitFrame, SplitView, technique_caption
-from render.passes import OverlayPass
+from render.present import OverlayPass
 from render.quality import FullQualityReference
 from render.renderer import PASS_TYPES, Renderer
 

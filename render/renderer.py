@@ -53,11 +53,10 @@ from render.passes import (
     LightCullPass,
     LightingPass,
     ObjectIdPass,
-    OverlayPass,
-    PresentPass,
     deferred,
 )
 from render.photons import PhotonPass
+from render.present import OverlayPass, PresentPass
 from render.refine import RefinePass
 from render.shaders import ShaderLibrary
 from render.shadow_mask import ShadowMaskPass

@@ -12,7 +12,8 @@ from app.scene import Material, Mesh, PointLight, Scene, Viewpoint
 from app.settings import Settings
 from render.offscreen import OffscreenHost
 from render.pass_graph import RESOURCES, PassGraphError, RenderPass, check_graph
-from render.passes import LightingPass, OverlayPass, PresentPass
+from render.passes import LightingPass
+from render.present import OverlayPass, PresentPass
 from render.renderer import PASS_TYPES, Renderer
 
 W, H = 128, 64
