@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from PyQt6.QtCore import QPoint, QPointF, Qt
@@ -129,6 +131,31 @@ def test_screenshot_and_viewpoint_are_saved(window, tmp_path):
     assert vp_actions
     vp_actions[0].trigger()
     np.testing.assert_allclose(window.session.walker.position, [0.0, 1.6, 0.0], atol=1e-9)
+
+
+def test_damaged_saved_viewpoints_are_left_out_and_the_good_one_still_works(window):
+    """viewpoints.json edited by hand or cut short: a bad entry is left out of the menu (no
+    error escapes the load or the menu's slot) and the good one still moves the viewer."""
+    window.save_viewpoint("good")
+    path = window._viewpoints_file()
+    saved = json.loads(path.read_text(encoding="utf-8"))
+    mine = saved[window.session.scene.name]
+    mine["no position"] = {"yaw_deg": 10.0}
+    mine["short"] = {"position": [1.0, 2.0]}
+    mine["words"] = {"position": ["a", "b", "c"]}
+    mine["not finite"] = {"position": [1.0, float("nan"), 0.0]}
+    mine["not a dict"] = [1, 2, 3]
+    path.write_text(json.dumps(saved), encoding="utf-8")
+    window._refresh_viewpoints()
+    names = [a.text() for a in window.viewpoint_menu.actions()[2:]]
+    assert names == ["good"]
+    window.session.walker.place((5.0, 1.6, 5.0), 45.0)
+    window.viewpoint_menu.actions()[2].trigger()
+    np.testing.assert_allclose(window.session.walker.position, [0.0, 1.6, 0.0], atol=1e-9)
+    # A file whose scene entry is not a table at all gives an empty list, no error.
+    path.write_text(json.dumps({window.session.scene.name: [1, 2]}), encoding="utf-8")
+    window._refresh_viewpoints()
+    assert window.viewpoint_menu.actions()[2:] == []
 
 
 def test_tcr_panel_toggles_and_presets_change_the_model_and_the_picture(window, qtbot):

@@ -8,6 +8,8 @@ and View > Viewpoints menu).
 from __future__ import annotations
 
 import json
+import logging
+import math
 import os
 import time
 from pathlib import Path
@@ -19,11 +21,28 @@ from app.fileio import atomic_write_json
 from app.paths import CameraPath
 from app.scene import Viewpoint
 
+log = logging.getLogger(__name__)
+
 
 def data_dir() -> Path:
     """Where screenshots, viewpoints and recordings go (VRPREVIEW_DATA overrides)."""
     base = os.environ.get("VRPREVIEW_DATA") or Path.home() / ".local" / "share" / "vrpreview"
     return Path(base)
+
+
+def saved_viewpoint(entry: object) -> Viewpoint | None:
+    """A viewpoints.json entry as a Viewpoint; None when it is not one (three finite
+    coordinates, finite angles)."""
+    if not isinstance(entry, dict):
+        return None
+    try:
+        position = tuple(float(c) for c in entry["position"])
+        yaw, pitch = float(entry.get("yaw_deg", 0.0)), float(entry.get("pitch_deg", 0.0))
+    except (KeyError, TypeError, ValueError):
+        return None
+    if len(position) != 3 or not all(math.isfinite(v) for v in (*position, yaw, pitch)):
+        return None
+    return Viewpoint(position, yaw, pitch)  # type: ignore[arg-type]
 
 
 class ViewpointActions:
@@ -68,13 +87,19 @@ class ViewpointActions:
         scene = self.session.scene
         if scene is None:
             return
-        for name, vp in self._read_viewpoints().get(scene.name, {}).items():
-            a = QAction(name, self)
-            a.triggered.connect(
-                lambda _=False, v=vp: self.go_to(
-                    Viewpoint(tuple(v["position"]), v.get("yaw_deg", 0.0), v.get("pitch_deg", 0.0))
+        saved = self._read_viewpoints().get(scene.name, {})
+        for name, entry in saved.items() if isinstance(saved, dict) else ():
+            vp = saved_viewpoint(entry)
+            if vp is None:  # a damaged entry in the file: left out, the others stay usable
+                log.warning(
+                    "viewpoint %r of %s in %s is unreadable",
+                    name,
+                    scene.name,
+                    self._viewpoints_file(),
                 )
-            )
+                continue
+            a = QAction(str(name), self)
+            a.triggered.connect(lambda _=False, v=vp: self.go_to(v))
             menu.addAction(a)
 
     def go_to(self, vp: Viewpoint) -> None:
