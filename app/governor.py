@@ -42,20 +42,51 @@ MAX_STEPS_FAR, MAX_STEPS_NEAR = 6, 2
 
 # Each pass's cost follows one quantity: the pixels it shades, the triangles it draws, the
 # shadow maps it redraws, or the window's pixels (present and overlay run at window size).
+# Coarse pixel shading's passes are their own categories: its lighting replaces the full-rate
+# lighting, and its block levels and filter are a cost CPS adds (on llvmpipe they outweigh
+# what CPS saves at every render scale on the showroom: the model must be able to learn that).
 _CATEGORY = {
     "gbuffer": "geometry",
     "forward": "geometry",
     "emissive": "geometry",
     "shadows": "shadows",
+    "shadow_mask": "shadow_mask",
     "lighting": "shading",
-    "cps_lighting": "shading",
-    "photons": "shading",
+    "cps_lighting": "cps_shading",
+    "cps_levels": "cps",
+    "cps_filter": "cps",
+    "cps_temporal": "cps",
+    "cps_mask": "cps",
+    "photons": "photons",
     "present": "output",
     "ab_split": "output",
     "overlay": "output",
     "daylight": "fixed",
 }
-CATEGORIES = ("pixels", "geometry", "shading", "shadows", "output", "fixed")
+CATEGORIES = (
+    "pixels",
+    "geometry",
+    "shading",
+    "cps_shading",
+    "cps",
+    "shadow_mask",
+    "shadows",
+    "photons",
+    "output",
+    "fixed",
+)
+# A category not measured yet (CPS while it is off, the full-rate lighting while the user's
+# CPS is on) is priced from one that was: (the other category, its share of that one's cost).
+_PRIORS = {
+    "cps_shading": ("shading", 1.0),
+    "shading": ("cps_shading", 1.0),
+    "cps": ("shading", 0.15),  # optimistic: CPS is tried, measured, and given back if it costs
+}
+#: The share of the geometry pass that a simplified level keeps, per render.lod_bias step
+#: (the interiors at 2x640x720: 0.7, 0.55, 0.45 of the pass; the triangles drop further).
+LOD_SHARE = {0: 1.0, 2: 0.7, 4: 0.55, 8: 0.45}
+#: A step back that the model predicts faster by at least this much is taken at once.
+FREE_RESTORE_MS = 0.5
 
 
 def category(pass_name: str) -> str:
@@ -233,10 +264,12 @@ def target_fps(settings: Settings, display_hz: float | None) -> float:
 def cost_factors(values: dict[str, Any]) -> dict[str, float]:
     """Each category's cost relative to full quality for these knob values (the model's
     shape; its scale is learnt): fullscreen work follows the pixels (scale squared), the
-    geometry its triangles and part of its pixels, soft shadows cost about twice the hard
-    ones in the lighting, CPS lights fewer samples outside the fovea."""
+    geometry part its pixels and part its triangles (``LOD_SHARE``), soft shadow edges cost
+    more taps in the shadow mask than hard ones, CPS's lighting lights fewer samples outside
+    the fovea (0 where CPS is off, as the full-rate lighting is 0 where it is on)."""
     s = float(values.get("render.scale", 1.0))
-    lod = int(values.get("render.lod_bias", 0) or 0)
+    lod = float(values.get("render.lod_bias", 0) or 0)
+    lod_share = min((v for k, v in LOD_SHARE.items() if k <= lod), default=1.0)
     bias = int(values.get("tcr.level_bias", 0) or 0)
     cps_on = values.get("cps.mode") == "cps"
     level = int(values.get("cps.max_level", 0)) if cps_on else 0
@@ -246,16 +279,20 @@ def cost_factors(values: dict[str, Any]) -> dict[str, float]:
     if cps_on:  # a smaller sharp area and a faster falloff light fewer full-rate samples
         periphery *= 0.85 + 0.15 * min(1.0, fovea / 10.0) * min(1.0, falloff / 6.0)
     upscaler = values.get("render.upscaler", "edge")
-    soft = 1.0 if values.get("render.shadows", "soft") == "soft" else 0.55
+    soft = 1.0 if values.get("render.shadows", "soft") == "soft" else 0.85
     updates = max(1, int(values.get("render.shadow_updates_per_frame", 2)))
     return {
         "pixels": s * s,
-        "geometry": (0.4 + 0.6 * s * s) * 0.6**lod * 0.97**bias,
-        "shading": s * s * periphery * soft,
+        "geometry": (0.4 + 0.6 * s * s) * lod_share * 0.97**bias,
+        "shading": 0.0 if cps_on else s * s,
+        "cps_shading": s * s * periphery if cps_on else 0.0,
+        "cps": 0.2 + 0.8 * s * s if cps_on else 0.0,
+        "shadow_mask": s * s * soft,
         "shadows": min(1.0, updates / 2.0),
+        "photons": s * s,
         # Enlarging the eyes (tone map at the drawn size, then EASU at the view's) measured
-        # 21 ms against 12.5 ms for the plain present at 2x640x720 on llvmpipe, bilinear 10.7.
-        "output": 1.0 if s >= 0.999 else (1.7 if upscaler == "edge" else 0.85),
+        # 2-2.5x the plain present on llvmpipe; bilinear enlarging about the same as none.
+        "output": 1.0 if s >= 0.999 else (2.0 if upscaler == "edge" else 1.0),
         "fixed": 1.0,
     }
 
@@ -350,7 +387,14 @@ class Governor:
     def predict(self, user: Settings, position: dict[str, int]) -> float:
         """Predicted frame time (ms) at ``position``."""
         f = cost_factors(self._values(user, position))
-        return (self.overhead_ms or 0.0) + sum(self.base_ms.get(c, 0.0) * f[c] for c in CATEGORIES)
+        return (self.overhead_ms or 0.0) + sum(self._base(c) * f[c] for c in CATEGORIES)
+
+    def _base(self, c: str) -> float:
+        """Category ``c``'s learnt cost at full quality, or its prior from a measured one."""
+        if c in self.base_ms:
+            return self.base_ms[c]
+        other, share = _PRIORS.get(c, ("", 0.0))
+        return self.base_ms.get(other, 0.0) * share
 
     def _learn(self, user: Settings, pass_ms: dict[str, float], frame_ms: float) -> None:
         f = cost_factors(self._values(user, self.position))
@@ -358,6 +402,8 @@ class Governor:
         for name, ms in pass_ms.items():
             per_cat[category(name)] += max(0.0, float(ms))
         for c, ms in per_cat.items():
+            if f[c] <= 0.0:  # not running at these knobs: nothing to learn of it
+                continue
             base = ms / max(f[c], 1e-3)
             old = self.base_ms.get(c)
             self.base_ms[c] = base if old is None else old + EMA * (base - old)
@@ -370,7 +416,7 @@ class Governor:
 
     def largest_cost(self, user: Settings) -> str:
         f = cost_factors(self._values(user, self.position))
-        costs = {c: self.base_ms.get(c, 0.0) * f[c] for c in CATEGORIES}
+        costs = {c: self._base(c) * f[c] for c in CATEGORIES}
         return max(costs, key=lambda c: costs[c]) if costs else "pixels"
 
     # -- one frame -----------------------------------------------------------------------------
@@ -415,7 +461,9 @@ class Governor:
         if self._restored is not None and self.frames - self._restored[1] > 3 * MIN_FRAMES:
             self._restored = None
         if self.since_change >= MIN_FRAMES:
-            if self.ema_ms > budget:
+            if self._free_restore(user):
+                pass
+            elif self.ema_ms > budget:
                 self._lower(user, budget)
             elif self.ema_ms < RESTORE_BELOW * budget:
                 self._restore(user, budget)
@@ -450,28 +498,71 @@ class Governor:
                 (k, s) for k, s in self._knobs_at(user, position) if position.get(k.key, 0) < len(s)
             ]
             normal = [(k, s) for k, s in knobs if not k.fovea]
-            pool = normal or knobs  # the fovea's knobs only when nothing else is left
-            best: tuple[float, Knob, float] | None = None
-            for knob, steps in pool:
-                i = position.get(knob.key, 0)
-                if i >= len(steps):
-                    continue
-                trial = {**position, knob.key: i + 1}
-                saved = predicted - self.predict(user, trial)
-                score = knob.error_of(steps[i]) / max(saved, 1e-3)
-                if best is None or score < best[0]:
-                    best = (score, knob, self.predict(user, trial))
+            fovea = [(k, s) for k, s in knobs if k.fovea]
+            # The fovea's knobs only when nothing else saves time.
+            best = self._best_step(user, position, predicted, normal)
+            best = best or self._best_step(user, position, predicted, fovea)
             if best is None:
                 break
-            _, knob, predicted = best
-            position[knob.key] = position.get(knob.key, 0) + 1
-            lowered.append((knob, position[knob.key]))
+            _, knob, j, predicted = best
+            position[knob.key] = j
+            lowered.append((knob, j))
         if lowered:
             ema = float(self.ema_ms or 0.0)
             self.position = position
             for knob, i in lowered:
                 steps = knob.usable_steps(user)
                 self._changed(user, "lower", knob, steps[i - 1][knob.key], ema)
+
+    def _best_step(
+        self, user: Settings, position: dict[str, int], predicted: float, pool: list
+    ) -> tuple[float, Knob, int, float] | None:
+        """The step of ``pool``'s knobs with the least error per millisecond it saves:
+        (score, knob, new position, predicted ms), None where none saves time. A jump of
+        several steps is a candidate too: a knob whose first step saves nothing (CPS adds its
+        own passes) may pay further on."""
+        best: tuple[float, Knob, int, float] | None = None
+        for knob, steps in pool:
+            i = position.get(knob.key, 0)
+            for j in range(i + 1, len(steps) + 1):
+                after = self.predict(user, {**position, knob.key: j})
+                saved = predicted - after
+                if saved <= 1e-3:  # a step that saves nothing is never a trade
+                    continue
+                score = sum(knob.error_of(step) for step in steps[i:j]) / saved
+                if best is None or score < best[0]:
+                    best = (score, knob, j, after)
+        return best
+
+    def _free_restore(self, user: Settings) -> bool:
+        """Step a knob back where the learnt model says its lower steps cost time (CPS's own
+        passes outweighing what it saves, say): better and faster, taken at once. True when
+        it did."""
+        predicted = self.predict(user, self.position)
+        best: tuple[float, Knob, int] | None = None
+        for knob, _steps in self._knobs_all(user):
+            i = self.position.get(knob.key, 0)
+            for j in range(i):
+                gain = predicted - self.predict(user, {**self.position, knob.key: j})
+                if gain >= FREE_RESTORE_MS and (best is None or gain > best[0]):
+                    best = (gain, knob, j)
+        if best is None:
+            return False
+        _, knob, j = best
+        self._set_back(user, knob, j)
+        return True
+
+    def _set_back(self, user: Settings, knob: Knob, j: int) -> None:
+        self.position[knob.key] = j
+        value = knob.usable_steps(user)[j - 1][knob.key] if j > 0 else user.get(knob.key)
+        if knob.key == "cps.max_level" and j == 0:
+            value = user.cps.mode
+            if user.cps.mode != "cps":  # CPS off again: its fovea knobs have nothing to do
+                for k in self.knobs:
+                    if k.fovea:
+                        self.position.pop(k.key, None)
+        self._restored = (knob.key, self.frames)
+        self._changed(user, "restore", knob, value, float(self.ema_ms or 0.0))
 
     def _knobs_at(self, user: Settings, position: dict[str, int]) -> list:
         saved, self.position = self.position, position
@@ -500,13 +591,7 @@ class Governor:
         if best is None:
             return
         knob = best[1]
-        self.position[knob.key] -= 1
-        i = self.position[knob.key]
-        value = knob.usable_steps(user)[i - 1][knob.key] if i > 0 else user.get(knob.key)
-        if knob.key == "cps.max_level" and i == 0:
-            value = user.cps.mode
-        self._restored = (knob.key, self.frames)
-        self._changed(user, "restore", knob, value, float(self.ema_ms or 0.0))
+        self._set_back(user, knob, self.position[knob.key] - 1)
 
     # -- words ---------------------------------------------------------------------------------
     def explain(self, user: Settings) -> list[str]:

@@ -35,8 +35,8 @@ import numpy as np
 log = logging.getLogger(__name__)
 CHUNK_TRIANGLES = 16384  # meshes above this are split into chunks of at most this many
 LOD_MIN_TRIANGLES = 128  # smaller meshes are always drawn in full (real rooms: many small ones)
-LOD_FRACTIONS = (0.5, 0.25, 0.1)  # the simplified levels' share of a chunk's triangles
-CACHE_VERSION = 2
+LOD_FRACTIONS = (0.5, 0.25, 0.1, 0.03)  # the simplified levels' share of a chunk's triangles
+CACHE_VERSION = 3
 
 
 @dataclass
@@ -97,13 +97,18 @@ def chunk_mesh(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, 
 
 
 def simplify_chunk(
-    pos: np.ndarray, tris: np.ndarray, fraction: float, normals: np.ndarray | None = None
+    pos: np.ndarray,
+    tris: np.ndarray,
+    fraction: float,
+    normals: np.ndarray | None = None,
+    keep_border: bool = True,
 ) -> tuple[np.ndarray, float] | None:
     """``tris`` (k, 3) of the mesh's vertices ``pos`` simplified to about ``fraction`` of its
     triangles, as triangles of the same vertices, and its error in metres: the farthest a
     vertex moved off its surface (along its normal) plus a quarter of its slide along it (which
     shifts outlines less); None when it cannot be (too few triangles, broken positions, no
-    reduction)."""
+    reduction). ``keep_border``: the chunk's open edges stay (where neighbouring chunks meet
+    it); a whole mesh lets them move too (its error counts how far)."""
     import fast_simplification
 
     used, local = np.unique(tris, return_inverse=True)
@@ -115,7 +120,7 @@ def simplify_chunk(
         points,
         local.astype(np.int32),
         target_reduction=1.0 - fraction,
-        preserve_border=True,  # the chunk's edge stays where its neighbours meet it
+        preserve_border=keep_border,  # the chunk's edge stays where its neighbours meet it
         return_collapses=True,
     )
     parent = np.arange(len(points))
@@ -163,7 +168,7 @@ def build_lod(
     for c in range(n):
         src = tris[chunks.first[0, c] // 3 : (chunks.first[0, c] + chunks.count[0, c]) // 3]
         for level, fraction in enumerate(LOD_FRACTIONS, start=1):
-            result = simplify_chunk(pos, src, fraction, normals)
+            result = simplify_chunk(pos, src, fraction, normals, keep_border=n > 1)
             if result is None:  # no coarser level: the previous one stands in
                 first[level, c], count[level, c] = first[level - 1, c], count[level - 1, c]
                 error[level, c] = error[level - 1, c]

@@ -4,7 +4,10 @@
 Each view tests every chunk's box against the frustum's side and near planes (Gribb and
 Hartmann's extraction from the view-projection matrix; the far plane is left out, a box beyond
 it costs only its vertices), picks each visible chunk's level from its projected error, and
-draws neighbouring ranges as one call.
+draws neighbouring ranges as one call. A whole small object (a mesh of one chunk, under
+``WHOLE_MESH_TRIANGLES``) that would cover no more than the allowed error on screen is left
+out (Funkhouser and Séquin's detail elision): real rooms hold hundreds of screws, knobs and
+handles of a centimetre or two, whose triangles cost the vertex stage as much as a wall's.
 """
 
 from __future__ import annotations
@@ -23,6 +26,11 @@ __all__ = [
 ]
 
 _planes_cache: tuple[bytes, np.ndarray] | None = None
+#: A chunk of fewer triangles at its full level is a whole mesh: a split mesh's chunks hold
+#: at least about half of app.lod.CHUNK_TRIANGLES each, so a hole is never cut in a surface.
+WHOLE_MESH_TRIANGLES = 4096
+#: The level :func:`lod_levels` gives a chunk left out (:func:`visible_ranges` skips it).
+LEFT_OUT = -1
 
 
 def frustum_planes(view_projection: np.ndarray) -> np.ndarray:
@@ -51,17 +59,34 @@ def visible_mask(chunks: Chunks, planes: np.ndarray) -> np.ndarray:
 
 
 def lod_levels(
-    chunks: Chunks, eye: np.ndarray, pixels_per_radian: float, max_error_px: float
+    chunks: Chunks,
+    eye: np.ndarray,
+    pixels_per_radian: float,
+    max_error_px: float,
+    keep: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per chunk, the coarsest level whose error, seen from ``eye`` at its nearest point of
-    the chunk's box, is at most ``max_error_px`` pixels (0: always the full level 0)."""
-    if chunks.levels == 1 or max_error_px <= 0:
-        return np.zeros(chunks.first.shape[1], np.int64)
+    the chunk's box, is at most ``max_error_px`` pixels (0: always the full level 0), or
+    :data:`LEFT_OUT` for a whole small mesh whose box's diagonal is within that error (its
+    whole surface moves no farther than that when it is not drawn) unless ``keep`` says so
+    (per chunk: a glowing lamp's bulb stays, however small)."""
+    n = chunks.first.shape[1]
+    if max_error_px <= 0:
+        return np.zeros(n, np.int64)
     nearest = np.clip(np.asarray(eye, np.float64), chunks.lo, chunks.hi)
     dist = np.maximum(np.linalg.norm(nearest - np.asarray(eye, np.float64), axis=1), 1e-3)
-    error_px = chunks.error * pixels_per_radian / dist[None, :]
-    ok = error_px <= max_error_px  # level 0 always (error 0)
-    return (ok.shape[0] - 1 - np.argmax(ok[::-1], axis=0)).astype(np.int64)
+    if chunks.levels == 1:
+        levels = np.zeros(n, np.int64)
+    else:
+        error_px = chunks.error * pixels_per_radian / dist[None, :]
+        ok = error_px <= max_error_px  # level 0 always (error 0)
+        levels = (ok.shape[0] - 1 - np.argmax(ok[::-1], axis=0)).astype(np.int64)
+    size_px = np.linalg.norm(chunks.hi - chunks.lo, axis=1) * pixels_per_radian / dist
+    whole = chunks.count[0] < 3 * WHOLE_MESH_TRIANGLES
+    if keep is not None:
+        whole &= ~np.asarray(keep, bool)
+    levels[whole & (size_px <= max_error_px)] = LEFT_OUT
+    return levels
 
 
 def merge_chunks(per_mesh: list[Chunks | None]) -> tuple[Chunks, np.ndarray]:
@@ -98,6 +123,8 @@ def visible_ranges(
     n = chunks.first.shape[1]
     mask = visible_mask(chunks, planes)
     lv = np.zeros(n, np.int64) if levels is None else levels
+    mask &= lv != LEFT_OUT
+    lv = np.maximum(lv, 0)
     firsts = chunks.first[lv, np.arange(n)][mask]
     counts = chunks.count[lv, np.arange(n)][mask]
     owners = np.zeros(n, np.int64)[mask] if owner is None else owner[mask]

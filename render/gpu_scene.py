@@ -242,9 +242,14 @@ class GpuScene:
             [-1 if m.texture is None else m.texture for m in self.meshes], np.int64
         )
         self._range_cache: dict[tuple, dict[int, list[tuple[int, int]]]] = {}
+        self._glow: dict[str, np.ndarray] = {}  # per group or mesh: its material glows
         self.drawn: dict[int, int] = {}  # triangles drawn per view this frame (eye index)
         self.calls: dict[int, int] = {}  # the geometry pass's draw calls per eye this frame
+        self.ranges: dict[int, int] = {}  # and the index ranges those calls drew
         self.draw_calls = 0  # every draw call issued for meshes or groups (a running count)
+        # Index ranges drawn (a multi-draw's commands each count: llvmpipe runs each as a draw
+        # of its own, with its own fixed cost), a running count like draw_calls.
+        self.draw_ranges = 0
         self._group_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         # A group whose visible ranges are several (culled members, levels of detail) is one
         # glMultiDrawElementsIndirect of them; False: one call per range (measuring).
@@ -472,6 +477,7 @@ class GpuScene:
         if view_projection is None or not self.cull:
             vao.render(moderngl.TRIANGLES, vertices=self.meshes[index].vertex_count)
             self.draw_calls += 1
+            self.draw_ranges += 1
             return self.meshes[index].vertex_count // 3
         return self._draw_ranges(vao, self._view_ranges(view_projection, eye).get(index, ()))
 
@@ -488,6 +494,7 @@ class GpuScene:
         if view_projection is None or not self.cull:
             vao.render(moderngl.TRIANGLES, vertices=g.index_count)
             self.draw_calls += 1
+            self.draw_ranges += 1
             return g.index_count // 3
         key = self._view_key(view_projection, eye, True)
         every = self._view_ranges(view_projection, eye, merged=True)
@@ -500,6 +507,7 @@ class GpuScene:
         start, n = offsets[group]
         vao.render_indirect(buffer, moderngl.TRIANGLES, count=n, first=start)
         self.draw_calls += 1
+        self.draw_ranges += n
         return sum(count for _, count in ranges) // 3
 
     def draw_members(
@@ -529,6 +537,7 @@ class GpuScene:
         vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(ranges))
         buffer.release()
         self.draw_calls += 1
+        self.draw_ranges += len(ranges)
         return sum(count for _, count in ranges) // 3
 
     def _commands(
@@ -550,6 +559,7 @@ class GpuScene:
             vao.render(moderngl.TRIANGLES, vertices=count, first=first)
             drawn += count
         self.draw_calls += len(ranges)
+        self.draw_ranges += len(ranges)
         return drawn // 3
 
     def _table(self, merged: bool | str) -> tuple[Chunks, np.ndarray]:
@@ -565,14 +575,15 @@ class GpuScene:
         at once (real rooms hold hundreds of meshes); the last views' answers are kept, so
         the passes of a frame that draw the same eye share them."""
         table, owner = self._table(merged)
-        lod = eye is not None and self.lod_bias > 0 and table.levels > 1
+        lod = eye is not None and self.lod_bias > 0
         key = self._view_key(view_projection, eye, merged)
         if key in self._range_cache:
             return self._range_cache[key]
         levels = None
         if lod and eye is not None:
             pixels_per_radian = float(eye.projection[1, 1]) * eye.height * 0.5
-            levels = lod_levels(table, eye.position, pixels_per_radian, self.lod_bias)
+            keep = self._glowing(merged)[owner] if len(owner) else None
+            levels = lod_levels(table, eye.position, pixels_per_radian, self.lod_bias, keep)
         ranges = visible_ranges(table, frustum_planes(view_projection), levels, owner)
         if len(self._range_cache) >= 16:  # two eyes and the shadow maps' faces of a frame
             self._range_cache.clear()
@@ -582,11 +593,23 @@ class GpuScene:
         self._range_cache[key] = ranges
         return ranges
 
+    def _glowing(self, merged: bool | str) -> np.ndarray:
+        """Per owner of a chunk table (a group where ``merged`` is True, else a mesh): whether
+        its material glows (kept however small it is on screen)."""
+        key = "groups" if merged is True else "meshes"
+        if key not in self._glow:
+            if key == "groups":
+                mats = [self.scene.materials[g.material_index] for g in self.groups]
+            else:
+                mats = [m.material for m in self.meshes]
+            self._glow[key] = np.array([max(m.emissive) > 0.0 for m in mats] + [False], bool)
+        return self._glow[key]
+
     def _view_key(
         self, view_projection: np.ndarray, eye: EyeView | None, merged: bool | str
     ) -> tuple:
         table = self._table(merged)[0]
-        lod = eye is not None and self.lod_bias > 0 and table.levels > 1
+        lod = eye is not None and self.lod_bias > 0
         return (
             merged,
             np.asarray(view_projection, np.float64).tobytes(),

@@ -204,10 +204,11 @@ class GBufferPass(RenderPass):
         for eye, tgt in zip(frame.eyes, res.targets):
             tgt.gbuffer.use()
             tgt.gbuffer.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            calls = frame.scene.draw_calls
+            calls, ranges = frame.scene.draw_calls, frame.scene.draw_ranges
             drawn = _draw_meshes(ctx, self.shaders, frame, eye, "gbuffer.frag.glsl")
             frame.scene.drawn[eye.index] = drawn
             frame.scene.calls[eye.index] = frame.scene.draw_calls - calls
+            frame.scene.ranges[eye.index] = frame.scene.draw_ranges - ranges
         ctx.disable(moderngl.DEPTH_TEST)
 
 
@@ -489,7 +490,7 @@ class ForwardPass(RenderPass):
                 tgt.forward.use()
                 tgt.forward.clear(*BACKGROUND, 1.0, depth=1.0)
                 eye_ao = ao[index] if ao is not None else None
-                calls = frame.scene.draw_calls
+                calls, ranges = frame.scene.draw_calls, frame.scene.draw_ranges
                 frame.scene.drawn[eye.index] = _draw_meshes(
                     ctx,
                     self.shaders,
@@ -500,6 +501,7 @@ class ForwardPass(RenderPass):
                     sky=res.get("sky"),
                 )
                 frame.scene.calls[eye.index] = frame.scene.draw_calls - calls
+                frame.scene.ranges[eye.index] = frame.scene.draw_ranges - ranges
         self.samples = int(self._samples_query.samples)
         ctx.disable(moderngl.DEPTH_TEST)
 

@@ -593,6 +593,11 @@ class Renderer:
         calls = (self.gpu_scene or self._empty).calls
         return [calls.get(i, 0) for i in range(2)]
 
+    def draw_ranges(self) -> list[int]:
+        """Index ranges those calls drew per eye (each command of a multi-draw counts)."""
+        ranges = (self.gpu_scene or self._empty).ranges
+        return [ranges.get(i, 0) for i in range(2)]
+
     def frame_draw_calls(self) -> int:
         """Draw calls for meshes so far, every pass (shadow maps, AO, ids included)."""
         return (self.gpu_scene or self._empty).draw_calls

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.lod import CHUNK_TRIANGLES, build_lod, cached_lod, chunk_mesh
+from app.lod import CHUNK_TRIANGLES, LOD_FRACTIONS, build_lod, cached_lod, chunk_mesh
 from app.scene import Light, Material, Mesh, Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings
@@ -150,7 +150,7 @@ def test_levels_are_coarser_far_away_and_with_a_higher_bias():
 
     m = bumpy_floor()
     tris, chunks = build_lod(m.positions, m.indices, m.normals)
-    assert chunks is not None and chunks.levels == 4
+    assert chunks is not None and chunks.levels == 1 + len(LOD_FRACTIONS)
     counts = chunks.count[:, 0]
     assert counts[0] == m.indices.size and counts[1] < counts[0] and counts[3] < counts[1]
     assert (chunks.error[1:] > 0).all()
@@ -200,3 +200,72 @@ def test_a_simplified_mesh_far_away_looks_like_the_full_one(host):
     assert all(c < f for c, f in zip(tris_coarse, tris_full)), (tris_coarse, tris_full)
     assert full[..., :3].std() > 3  # the floor is in view
     assert np.abs(full - coarse).mean() < 2.0
+
+
+def screws_scene(glow: bool = False) -> Scene:
+    """The grid floor and a row of 5 cm boxes (knobs, handles) 1 to 8 m ahead at eye level,
+    black against a lit white wall behind them (glowing when ``glow``)."""
+    wall = MeshBuilder()
+    wall.box((0.0, 1.5, -10.0), (20.0, 3.0, 0.2))
+    screws = []
+    for z in (-1.0, -2.0, -4.0, -8.0):
+        screw = MeshBuilder()
+        screw.box((0.0, 1.6, z), (0.05, 0.05, 0.05))
+        screws.append(screw.mesh(f"screw{-z:g}", 2))
+    materials = [
+        Material("grey", (0.8, 0.8, 0.8, 1.0), None, roughness=1.0),
+        Material("white", (1.0, 1.0, 1.0, 1.0), None, roughness=1.0, emissive=(2.0, 2.0, 2.0)),
+        Material("black", (0.0, 0.0, 0.0, 1.0), None, emissive=(9.0, 0, 0) if glow else (0, 0, 0)),
+    ]
+    return Scene(
+        "screws",
+        [grid_floor(), wall.mesh("wall", 1), *screws],
+        materials,
+        [],
+        [Light((0.0, 3.0, 0.0), intensity=20.0, range_m=30.0)],
+        Viewpoint((0.0, 1.6, 0.0)),
+        floor_y=0.0,
+    ).sanitized()
+
+
+def test_a_tiny_whole_object_is_left_out_within_the_error_and_a_glowing_one_stays():
+    from render.culling import LEFT_OUT, lod_levels
+
+    screw = MeshBuilder()
+    screw.box((0.0, 1.6, -4.0), (0.02, 0.02, 0.02))
+    _, chunks = chunk_mesh(screw.mesh("screw", 0).positions, screw.mesh("screw", 0).indices)
+    assert chunks is not None
+    eye = np.array([0.0, 1.6, 0.0])
+    # 3.5 cm of diagonal at 4 m, 400 px a radian: 3.5 px on screen.
+    assert lod_levels(chunks, eye, 400.0, 0.0)[0] == 0  # no bias: always drawn
+    assert lod_levels(chunks, eye, 400.0, 2.0)[0] == 0  # bigger than the error allowed
+    assert lod_levels(chunks, eye, 400.0, 4.0)[0] == LEFT_OUT
+    assert lod_levels(chunks, eye, 400.0, 4.0, keep=np.array([True]))[0] == 0
+    # A chunk of a big mesh is never left out: it would cut a hole in its surface.
+    floor = grid_floor()
+    _, big = chunk_mesh(floor.positions, floor.indices)
+    assert big is not None
+    assert (lod_levels(big, np.array([0.0, 500.0, 0.0]), 400.0, 16.0) != LEFT_OUT).all()
+
+
+def test_tiny_objects_go_with_the_bias_and_glowing_ones_stay_on_screen(host):
+    def draw(sc: Scene, bias: float):
+        host.settings.set("render.lod_bias", bias)
+        host.set_scene(sc)
+        fi = frame(host, sc)
+        img = host.draw(fi).astype(float)
+        return img, host.renderer.triangles_drawn()[0]
+
+    try:
+        full, full_tris = draw(screws_scene(), 0.0)
+        simple, simple_tris = draw(screws_scene(), 8.0)
+        lit_full, _ = draw(screws_scene(glow=True), 0.0)
+        lit_simple, _ = draw(screws_scene(glow=True), 8.0)
+    finally:
+        host.settings.set("render.lod_bias", 0.0)
+    assert simple_tris <= full_tris - 4 * 12  # the four boxes' 12 triangles each are gone
+    # The nearest box (5 cm at 1 m: about 4 px across at this size) was a dark dot on the
+    # white wall; simplified, the wall shows there. Glowing, it stays.
+    dark = (full.sum(axis=2) < 200) & (simple.sum(axis=2) > 400)
+    assert dark.sum() >= 1
+    assert np.array_equal(lit_full, lit_simple)

@@ -23,25 +23,43 @@ KEYS = (
     "cps.deg_per_level",
     "render.upscaler",
 )
-# A frame's full-quality pass costs (ms), the shape of the showroom's at 2x640x720.
-BASE = {"gbuffer": 14.0, "shadows": 6.0, "lighting": 40.0, "ao": 6.0, "present": 4.0}
+# A frame's full-quality pass costs (ms), the shape of the showroom's at 2x640x720; CPS's
+# lighting replaces the full-rate one (each is 0 where the other runs) and adds its levels.
+BASE = {
+    "gbuffer": 14.0,
+    "shadows": 6.0,
+    "lighting": 40.0,
+    "cps_lighting": 40.0,
+    "cps_levels": 4.0,
+    "ao": 6.0,
+    "present": 4.0,
+}
 
 
-def synthetic(user: Settings, overrides: dict, load: float = 1.0) -> tuple[dict, float]:
+def synthetic(
+    user: Settings, overrides: dict, load: float = 1.0, base: dict | None = None
+) -> tuple[dict, float]:
     """Pass times and frame time for these knobs: the model's own shape with other numbers
     (geometry with a fixed vertex share, lighting following the shaded pixels)."""
     eff = apply_overrides(user, overrides)
     f = cost_factors({k: eff.get(k) for k in KEYS})
-    passes = {name: load * ms * f[category(name)] for name, ms in BASE.items()}
+    costs = BASE if base is None else base
+    passes = {name: load * ms * f[category(name)] for name, ms in costs.items()}
     return passes, sum(passes.values()) + 2.0
 
 
-def run(user: Settings, frames: int, load=lambda i: 1.0, gov: Governor | None = None):
+def run(
+    user: Settings,
+    frames: int,
+    load=lambda i: 1.0,
+    gov: Governor | None = None,
+    base: dict | None = None,
+):
     gov = gov or Governor()
     overrides: dict = {}
     times, history = [], []
     for i in range(frames):
-        passes, ms = synthetic(user, overrides, load(i))
+        passes, ms = synthetic(user, overrides, load(i), base)
         times.append(ms)
         overrides = gov.observe(user, passes, ms)
         history.append(dict(overrides))
@@ -102,6 +120,24 @@ def test_fovea_knobs_go_last_and_come_back_first():
     restores = [d.knob for d in gov.history if d.action == "restore"]
     assert restores and restores[0] in fovea
     assert gov.overrides.get("render.scale", 1.0) > 0.35
+
+
+def test_coarse_lighting_that_costs_more_than_it_saves_is_given_back():
+    """CPS adds passes of its own (block levels, filter): where they outweigh what it saves
+    (on llvmpipe at every render scale), the governor learns it from the timers and turns CPS
+    off again, for a faster and better frame, and does not try it again."""
+    user = walking("30")
+    dear = {**BASE, "cps_levels": 45.0}  # the prior guessed 6 ms
+    gov, times, history = run(user, 150, base=dear)
+    cps = [d for d in gov.history if d.knob == "coarse lighting in the periphery"]
+    assert cps and cps[0].action == "lower"  # tried (the prior said it would pay) ...
+    assert any(d.action == "restore" and d.value == "none" for d in cps)  # ... and given back
+    assert history[-1].get("cps.mode", "none") == "none"
+    assert max(times[100:]) <= 33.4  # the budget is held without it
+    assert sum(d.action == "lower" for d in cps) <= 2  # no trying again and again
+    # Where CPS pays (its own passes cheap), it stays on.
+    gov, _, history = run(user, 150)
+    assert history[-1].get("cps.mode") == "cps"
 
 
 def test_holds_the_budget_as_the_cost_changes():

@@ -224,6 +224,7 @@ def bench(
     photon_frames: list[dict] = []
     drawn: list[list[int]] = []  # triangles drawn per eye, per frame
     calls: list[list[int]] = []  # the geometry pass's draw calls per eye, per frame
+    ranges: list[list[int]] = []  # the index ranges those calls drew per eye, per frame
     frame_calls: list[int] = []  # draw calls for meshes per frame, every pass
     try:
         host.set_text_image(None)
@@ -246,6 +247,7 @@ def bench(
             resident.append(host.renderer.texture_resident_bytes())
             drawn.append(host.renderer.triangles_drawn())
             calls.append(host.renderer.draw_calls())
+            ranges.append(host.renderer.draw_ranges())
             frame_calls.append(host.renderer.frame_draw_calls() - calls_before)
             gazed = session.gazed
             distance = (
@@ -340,6 +342,7 @@ def bench(
         geometry={
             "triangles_drawn": [int(np.median(col)) for col in zip(*drawn)] if drawn else [],
             "draw_calls": [int(np.median(col)) for col in zip(*calls)] if calls else [],
+            "draw_ranges": [int(np.median(col)) for col in zip(*ranges)] if ranges else [],
             "draw_calls_frame": int(np.median(frame_calls)) if frame_calls else 0,
             "meshes": len(scene.meshes),
             "merged_groups": merged_groups,
