@@ -310,6 +310,22 @@ class Decision:
     largest: str  # the costliest category then
 
 
+#: The range of a learnt step factor (one measurement sets it: the model's shape can be off
+#: by 2x, a view's changing content by about 20 %).
+STEP_SCALE_RANGE = (0.25, 4.0)
+
+
+@dataclass
+class _StepTrial:
+    """A change of one knob, measured: each category's steady cost before, its costs after."""
+
+    key: str
+    before_position: dict[str, int]
+    after_position: dict[str, int]
+    before: dict[str, float]
+    after: list[dict[str, float]] = field(default_factory=list)
+
+
 @dataclass
 class Governor:
     """The walking state: each knob's step (0: the user's value), the learnt cost model."""
@@ -330,6 +346,12 @@ class Governor:
     # _knobs_all and the user's knob values, for this frame's settings
     _steps: tuple[Settings, list, dict[str, Any]] | None = None
     _restored: tuple[str, int] | None = None  # the last restore and when (overshoot check)
+    # What the timers taught of each knob step: (key, step) -> category -> a factor on the
+    # model's (the model's shape can be wrong for a scene: simpler geometry saves nothing
+    # where the frame is not drawing triangles; CPS's lighting saves less than modelled).
+    step_scale: dict[tuple[str, int], dict[str, float]] = field(default_factory=dict)
+    category_ms: dict[str, float] = field(default_factory=dict)  # measured, steady (EMA)
+    _pending: _StepTrial | None = None  # a one-knob change being measured
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
@@ -384,9 +406,18 @@ class Governor:
         return out
 
     # -- the cost model ------------------------------------------------------------------------
+    def _factors(self, user: Settings, position: dict[str, int]) -> dict[str, float]:
+        """The model's factors at ``position`` times what the timers taught of each knob
+        step (:meth:`_learn_step`)."""
+        f = cost_factors(self._values(user, position))
+        for key, i in position.items():
+            for c, scale in self.step_scale.get((key, i), {}).items():
+                f[c] *= scale
+        return f
+
     def predict(self, user: Settings, position: dict[str, int]) -> float:
         """Predicted frame time (ms) at ``position``."""
-        f = cost_factors(self._values(user, position))
+        f = self._factors(user, position)
         return (self.overhead_ms or 0.0) + sum(self._base(c) * f[c] for c in CATEGORIES)
 
     def _base(self, c: str) -> float:
@@ -397,7 +428,7 @@ class Governor:
         return self.base_ms.get(other, 0.0) * share
 
     def _learn(self, user: Settings, pass_ms: dict[str, float], frame_ms: float) -> None:
-        f = cost_factors(self._values(user, self.position))
+        f = self._factors(user, self.position)
         per_cat = dict.fromkeys(CATEGORIES, 0.0)
         for name, ms in pass_ms.items():
             per_cat[category(name)] += max(0.0, float(ms))
@@ -407,6 +438,12 @@ class Governor:
             base = ms / max(f[c], 1e-3)
             old = self.base_ms.get(c)
             self.base_ms[c] = base if old is None else old + EMA * (base - old)
+        if self._pending is not None:
+            self._pending.after.append(per_cat)
+        else:
+            for c, ms in per_cat.items():
+                old = self.category_ms.get(c)
+                self.category_ms[c] = ms if old is None else old + EMA * (ms - old)
         rest = max(0.0, frame_ms - sum(per_cat.values()))
         self.overhead_ms = (
             rest
@@ -415,7 +452,7 @@ class Governor:
         )
 
     def largest_cost(self, user: Settings) -> str:
-        f = cost_factors(self._values(user, self.position))
+        f = self._factors(user, self.position)
         costs = {c: self._base(c) * f[c] for c in CATEGORIES}
         return max(costs, key=lambda c: costs[c]) if costs else "pixels"
 
@@ -448,10 +485,11 @@ class Governor:
         if self.frames <= WARMUP_FRAMES:
             self.overrides = self._overrides(user)
             return self.overrides
-        self._learn(user, pass_ms, frame_ms)
-        self.ema_ms = (
-            frame_ms if self.ema_ms is None else self.ema_ms + EMA * (frame_ms - self.ema_ms)
-        )
+        if self.since_change > 0:  # the first frame with new knobs compiles and allocates
+            self._learn(user, pass_ms, frame_ms)
+            self.ema_ms = (
+                frame_ms if self.ema_ms is None else self.ema_ms + EMA * (frame_ms - self.ema_ms)
+            )
         self.since_change += 1
         for k in list(self._backoff):
             self._backoff[k] -= 1
@@ -460,7 +498,9 @@ class Governor:
         budget = self.budget_ms
         if self._restored is not None and self.frames - self._restored[1] > 3 * MIN_FRAMES:
             self._restored = None
-        if self.since_change >= MIN_FRAMES:
+        if self.since_change >= MIN_FRAMES and self._pending is not None:
+            self._learn_step(user)
+        if self.since_change >= MIN_FRAMES and self.ema_ms is not None:
             if self._free_restore(user):
                 pass
             elif self.ema_ms > budget:
@@ -509,6 +549,7 @@ class Governor:
             lowered.append((knob, j))
         if lowered:
             ema = float(self.ema_ms or 0.0)
+            self._trial(user, position)
             self.position = position
             for knob, i in lowered:
                 steps = knob.usable_steps(user)
@@ -553,6 +594,7 @@ class Governor:
         return True
 
     def _set_back(self, user: Settings, knob: Knob, j: int) -> None:
+        self._trial(user, {**self.position, knob.key: j})
         self.position[knob.key] = j
         value = knob.usable_steps(user)[j - 1][knob.key] if j > 0 else user.get(knob.key)
         if knob.key == "cps.max_level" and j == 0:
@@ -563,6 +605,51 @@ class Governor:
                         self.position.pop(k.key, None)
         self._restored = (knob.key, self.frames)
         self._changed(user, "restore", knob, value, float(self.ema_ms or 0.0))
+
+    def _trial(self, user: Settings, position: dict[str, int]) -> None:
+        """Measure the change to ``position`` where it moves one knob only (several at once
+        cannot be told apart)."""
+        keys = {*position, *self.position}
+        changed = [k for k in keys if position.get(k, 0) != self.position.get(k, 0)]
+        self._pending = None
+        if len(changed) == 1 and self.category_ms:
+            self._pending = _StepTrial(
+                changed[0], dict(self.position), dict(position), dict(self.category_ms)
+            )
+        else:  # the steady costs start again at the new knobs
+            self.category_ms = {}
+
+    def _learn_step(self, user: Settings) -> None:
+        """The measured change of each category the model says the knob moves, against the
+        model's: the step's learnt factor (on the higher step) moves towards it."""
+        trial = self._pending
+        self._pending = None
+        if trial is None or len(trial.after) < 2:
+            return
+        key = trial.key
+        hi = max(trial.before_position.get(key, 0), trial.after_position.get(key, 0))
+        if hi <= 0:
+            return
+        f_before = self._factors(user, trial.before_position)
+        f_after = self._factors(user, trial.after_position)
+        after = {c: float(np.mean([a[c] for a in trial.after])) for c in CATEGORIES}
+        scales = self.step_scale.setdefault((key, hi), {})
+        for c in CATEGORIES:
+            before_ms, after_ms = trial.before.get(c, 0.0), after[c]
+            if f_before[c] <= 0.0 or f_after[c] <= 0.0 or before_ms < 0.3 or after_ms <= 0.0:
+                continue
+            model = f_after[c] / f_before[c]
+            if abs(model - 1.0) < 0.02:  # a category this knob does not move
+                continue
+            seen = after_ms / before_ms
+            # The higher step's factor moves: a lowering measured it after, a restore before.
+            lowered = trial.after_position.get(key, 0) > trial.before_position.get(key, 0)
+            miss = seen / model if lowered else model / seen
+            lo_s, hi_s = STEP_SCALE_RANGE
+            scale = scales.get(c, 1.0) * miss
+            scales[c] = float(min(hi_s, max(lo_s, scale)))
+        for c in CATEGORIES:  # the steady costs, now at the new knobs
+            self.category_ms[c] = after[c]
 
     def _knobs_at(self, user: Settings, position: dict[str, int]) -> list:
         saved, self.position = self.position, position
