@@ -608,7 +608,6 @@ class GpuScene:
     def _view_key(
         self, view_projection: np.ndarray, eye: EyeView | None, merged: bool | str
     ) -> tuple:
-        table = self._table(merged)[0]
         lod = eye is not None and self.lod_bias > 0
         return (
             merged,
