@@ -621,7 +621,8 @@ class Governor:
 
     def _learn_step(self, user: Settings) -> None:
         """The measured change of each category the model says the knob moves, against the
-        model's: the step's learnt factor (on the higher step) moves towards it."""
+        model's: the higher step's learnt factor takes it, the steps beyond it too, the ones
+        between in part."""
         trial = self._pending
         self._pending = None
         if trial is None or len(trial.after) < 2:
@@ -633,7 +634,9 @@ class Governor:
         f_before = self._factors(user, trial.before_position)
         f_after = self._factors(user, trial.after_position)
         after = {c: float(np.mean([a[c] for a in trial.after])) for c in CATEGORIES}
-        scales = self.step_scale.setdefault((key, hi), {})
+        lo = min(trial.before_position.get(key, 0), trial.after_position.get(key, 0))
+        steps = max((len(k.steps) for k in self.knobs if k.key == key), default=hi)
+        lowered = trial.after_position.get(key, 0) > trial.before_position.get(key, 0)
         for c in CATEGORIES:
             before_ms, after_ms = trial.before.get(c, 0.0), after[c]
             if f_before[c] <= 0.0 or f_after[c] <= 0.0 or before_ms < 0.3 or after_ms <= 0.0:
@@ -642,12 +645,15 @@ class Governor:
             if abs(model - 1.0) < 0.02:  # a category this knob does not move
                 continue
             seen = after_ms / before_ms
-            # The higher step's factor moves: a lowering measured it after, a restore before.
-            lowered = trial.after_position.get(key, 0) > trial.before_position.get(key, 0)
+            # The higher step's factor moves (a lowering measured it after, a restore before),
+            # the steps beyond it with it and the ones between in part: the chain stays whole.
             miss = seen / model if lowered else model / seen
             lo_s, hi_s = STEP_SCALE_RANGE
-            scale = scales.get(c, 1.0) * miss
-            scales[c] = float(min(hi_s, max(lo_s, scale)))
+            for k in range(lo + 1, max(steps, hi) + 1):
+                share = 1.0 if k >= hi else (k - lo) / (hi - lo)
+                scales = self.step_scale.setdefault((key, k), {})
+                scale = scales.get(c, 1.0) * miss**share
+                scales[c] = float(min(hi_s, max(lo_s, scale)))
         for c in CATEGORIES:  # the steady costs, now at the new knobs
             self.category_ms[c] = after[c]
 
