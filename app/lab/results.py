@@ -171,8 +171,9 @@ class BenchResult:
     error_vs_full_quality: ErrorVsFullQuality | None = None
     command: str | None = None  # the command that makes the run again (experiments)
     shadows: dict | None = None  # the shadow maps: GPU memory, maps drawn (render.shadows)
-    # The geometry drawn: ``triangles_drawn`` and ``draw_calls`` per eye (the geometry
-    # pass's, median over frames, after culling), ``draw_calls_frame`` (every pass's draws of
+    # The geometry drawn: ``triangles_drawn``, ``draw_calls`` and ``draw_ranges`` (index
+    # ranges, a multi-draw's commands each counted) per eye (the geometry pass's, median over
+    # frames, after culling and levels of detail), ``draw_calls_frame`` (every pass's draws of
     # meshes in a frame, shadow maps included), ``meshes`` and ``merged_groups`` (the
     # material groups the static meshes were merged into, render.gpu_scene.GpuGroup),
     # ``gpu_bytes`` (the vertex, index, sky and object-index buffers on the GPU, each mesh's
