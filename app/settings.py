@@ -288,7 +288,8 @@ class RenderSettings:
     lod_bias: float = _opt(
         0.0,
         "Draws far-away objects with fewer triangles: how far, in pixels on screen, a "
-        "simplified surface may stray from the full one. 0 always draws full detail.",
+        "simplified surface may stray from the full one; a small object that would cover "
+        "less than that is left out (glowing ones stay). 0 always draws full detail.",
         label="Simplify distant geometry",
         unit="px",
         paper="Funkhouser and Séquin: level of detail",
