@@ -728,6 +728,12 @@ class Governor:
             "lowered": sum(d.action == "lower" for d in self.history),
             "restored": sum(d.action == "restore" for d in self.history),
             "final": dict(self.overrides),
+            # What the timers taught of the model (knob step -> category -> factor on it).
+            "learnt": {
+                f"{key}#{step}": {c: round(v, 3) for c, v in scales.items() if v != 1.0}
+                for (key, step), scales in sorted(self.step_scale.items())
+                if any(v != 1.0 for v in scales.values())
+            },
             "history": [
                 {"frame": d.frame, "action": d.action, "knob": d.knob, "value": d.value}
                 for d in self.history[-50:]

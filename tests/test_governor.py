@@ -183,6 +183,7 @@ def test_a_knob_that_saves_less_than_modelled_is_learnt():
     learnt = Governor()
     assert prediction_error(learnt) < 0.05 < 0.2 < prediction_error(naive)
     assert max(s.get("geometry", 1.0) for s in learnt.step_scale.values()) > 1.3
+    assert any(key.startswith("render.lod_bias#") for key in learnt.summary()["learnt"])
 
 
 def test_holds_the_budget_as_the_cost_changes():
