@@ -352,6 +352,7 @@ class Governor:
     step_scale: dict[tuple[str, int], dict[str, float]] = field(default_factory=dict)
     category_ms: dict[str, float] = field(default_factory=dict)  # measured, steady (EMA)
     _pending: _StepTrial | None = None  # a one-knob change being measured
+    _user_values: dict[str, Any] | None = None  # the user's knob values last frame
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
@@ -427,6 +428,19 @@ class Governor:
         other, share = _PRIORS.get(c, ("", 0.0))
         return self.base_ms.get(other, 0.0) * share
 
+    def new_scene(self) -> None:
+        """Another room: what was learnt of the costs is forgotten (the walking state
+        stays: a heavier room lowers more from where it is)."""
+        self.base_ms.clear()
+        self.overhead_ms = None
+        self.ema_ms = None
+        self._forget_steps()
+
+    def _forget_steps(self) -> None:
+        self.step_scale.clear()
+        self.category_ms.clear()
+        self._pending = None
+
     def _learn(self, user: Settings, pass_ms: dict[str, float], frame_ms: float) -> None:
         f = self._factors(user, self.position)
         per_cat = dict.fromkeys(CATEGORIES, 0.0)
@@ -469,6 +483,12 @@ class Governor:
         values, applied over a copy of the user's settings)."""
         self.frames += 1
         self._steps = None  # the user may have changed a setting since the last frame
+        self._knobs_all(user)  # the user's knob values, worked out once for this frame
+        assert self._steps is not None
+        mine = self._steps[2]
+        if self._user_values is not None and mine != self._user_values:
+            self._forget_steps()  # the user changed a knob: the steps start from other values
+        self._user_values = dict(mine)
         fps = target_fps(user, display_hz)
         self.budget_ms = 1000.0 / fps if fps > 0 else 0.0
         self.refining = bool(refining)
@@ -594,15 +614,16 @@ class Governor:
         return True
 
     def _set_back(self, user: Settings, knob: Knob, j: int) -> None:
-        self._trial(user, {**self.position, knob.key: j})
-        self.position[knob.key] = j
+        position = {**self.position, knob.key: j}
         value = knob.usable_steps(user)[j - 1][knob.key] if j > 0 else user.get(knob.key)
         if knob.key == "cps.max_level" and j == 0:
             value = user.cps.mode
             if user.cps.mode != "cps":  # CPS off again: its fovea knobs have nothing to do
                 for k in self.knobs:
                     if k.fovea:
-                        self.position.pop(k.key, None)
+                        position.pop(k.key, None)
+        self._trial(user, position)
+        self.position = position
         self._restored = (knob.key, self.frames)
         self._changed(user, "restore", knob, value, float(self.ema_ms or 0.0))
 

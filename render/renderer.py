@@ -187,6 +187,7 @@ class Renderer:
         if "exposure_meter" in self._by_name:
             self.exposure_meter.forget()
         self._forget_refinement()
+        self.governor.new_scene()  # another room costs otherwise: learn it afresh
         if scene is not None:
             self.gpu_scene = GpuScene(
                 self.ctx,

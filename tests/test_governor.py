@@ -184,6 +184,15 @@ def test_a_knob_that_saves_less_than_modelled_is_learnt():
     assert prediction_error(learnt) < 0.05 < 0.2 < prediction_error(naive)
     assert max(s.get("geometry", 1.0) for s in learnt.step_scale.values()) > 1.3
     assert any(key.startswith("render.lod_bias#") for key in learnt.summary()["learnt"])
+    # Another room, or the user moving a knob the steps start from: learnt afresh.
+    learnt.new_scene()
+    assert not learnt.step_scale and not learnt.base_ms
+    gov, _, _ = run(user, 60, load=heavy, truth=few_triangles, base=base)
+    assert gov.step_scale
+    user.set("render.lod_bias", 2.0)
+    passes, ms = synthetic(user, gov.overrides, 1.0, base, few_triangles)
+    gov.observe(user, passes, ms)
+    assert not gov.step_scale
 
 
 def test_holds_the_budget_as_the_cost_changes():
