@@ -29,8 +29,11 @@ log = logging.getLogger(__name__)
 
 #: Act when the frame-time average is over the budget; give quality back below this share.
 RESTORE_BELOW = 0.8
-#: Aim a degrading step at this share of the budget, and a restore must be predicted below it.
+#: Aim a degrading step at this share of the budget; a restore must be predicted below
+#: RESTORE_AIM (lower: a frame's time varies by 10 % as the view moves, and a restore that
+#: lands at the top of the band is lowered again a few frames later, each change a spike).
 AIM = 0.9
+RESTORE_AIM = 0.85
 #: Frames between two changes (the timers settle on the new knobs first).
 MIN_FRAMES = 4
 #: Weight of the exponential moving averages (frame time, per-category costs).
@@ -516,7 +519,7 @@ class Governor:
             if self._backoff[k] <= 0:
                 del self._backoff[k]
         budget = self.budget_ms
-        if self._restored is not None and self.frames - self._restored[1] > 3 * MIN_FRAMES:
+        if self._restored is not None and self.frames - self._restored[1] > 6 * MIN_FRAMES:
             self._restored = None
         if self.since_change >= MIN_FRAMES and self._pending is not None:
             self._learn_step(user)
@@ -696,7 +699,7 @@ class Governor:
                 continue
             trial = {**self.position, knob.key: i - 1}
             after = self.predict(user, trial) + correction
-            if after > AIM * budget:
+            if after > RESTORE_AIM * budget:
                 continue
             cost = max(after - predicted - correction, 1e-3)
             rank = (0 if knob.fovea else 1, -knob.error_of(steps[i - 1]) / cost)
