@@ -244,7 +244,8 @@ def test_blended_glass_shows_what_lies_behind_tinted(host, path):
     no_glass = draw(host, background_and_front(glass, [], with_front=False), **path)
     r, c = pixel_of(host, 0.0, 0.0, -2.0)
     behind, through, wall_px = no_glass[r, c], seen[r, c], blocked[r, c]
-    assert wall_px[0] < 0.5 * behind[0]  # an opaque pane hides the red wall ...
+    # an opaque pane hides the red wall (its red: the even light its specular lobe reflects) ...
+    assert wall_px[0] < 0.6 * behind[0]
     assert through[0] > 0.4 * behind[0] and through[0] > wall_px[0] + 30  # ... glass shows it,
     assert through[2] > behind[2] + 10  # tinted blue
 
