@@ -38,7 +38,8 @@ uniform float u_occluder_return;  // what hides a crease's light sends back (< 0
 // Smooth window: 1 near the light, exactly 0 at the range, so culling by range is exact.
 float range_window(float d2, float range) {
     float x = d2 / (range * range);
-    float w = clamp(1.0 - x * x, 0.0, 1.0);
+    float x2 = x * x;
+    float w = clamp(1.0 - x2 * x2, 0.0, 1.0);
     return w * w;
 }
 
