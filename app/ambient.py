@@ -21,7 +21,10 @@ over the scene by area, and takes its mean over what a person standing in the ro
    contribution), ``E_ind = E_1 + E_2 + ...``; the ambient radiance scale the shaders take
    (``u_ambient``: ``albedo * u_ambient`` is the radiance a surface sends back) is the
    reflectance-weighted mean of ``E_ind / pi`` over the faces seen from the standing points:
-   the mean that the picture's ambient term then has.
+   the mean that the picture's ambient term then has. The sun's first bounce is found
+   exactly where the rays hit (its patch on the floor is small and very bright); a hit is
+   never given a face that sees nothing (a wall's outer face in the sun and the open sky,
+   across a thin wall from the one the ray met).
 3. **By the way a surface faces** (``AmbientEstimate.gradient``): the weighted least-squares
    slope of those faces' ``E_ind / pi`` against their normals, so that the shaders give a floor
    that sees the lamp-lit ceiling more than the ceiling that sees the darker floor
@@ -146,6 +149,7 @@ class AmbientProbe:
     ) -> None:
         self.points = np.zeros((0, 3))
         self.mean_albedo = 0.0
+        self._record: list[tuple[np.ndarray, np.ndarray]] | None = None
         tris, owner, _vn = _scene_geometry(scene)
         if tris.shape[0] == 0:
             return
@@ -193,13 +197,22 @@ class AmbientProbe:
         n = len(self.points)
         self.paths = np.full((2 * n, GATHER_RAYS), -1, np.int64)
         self.crease = np.zeros(2 * n)  # per face, the share of its rays that end nearby
+        self._hits: list[tuple[np.ndarray, np.ndarray]] = []
         for k, side in enumerate((1.0, -1.0)):
             self._near_hits: list[np.ndarray] = []
             self.paths[k::2] = self._faces_seen(self.points, self.normal * side, rng)
             self.crease[k::2] = np.mean(self._near_hits, axis=0)
+        # Where each face's rays hit (NaN: a miss) and the hit surface's normal turned to the
+        # ray: the sun's first bounce is found there exactly (its patch is small and bright).
+        self.hit_at = np.empty((2 * n, GATHER_RAYS, 3), np.float32)
+        self.hit_normal = np.empty((2 * n, GATHER_RAYS, 3), np.float32)
+        for k, (at, facing) in enumerate(self._hits):
+            self.hit_at[k::2], self.hit_normal[k::2] = at, facing
+        del self._hits
         c = (self.paths >= 0).mean(axis=1)
         self.closure = [c[0::2], c[1::2]]
-        self.seen = self._seen_from_standing_points(scene, c, rng)
+        self.paths = _seen_side(self.paths, c)
+        self.seen = _seen_side(self._seen_from_standing_points(scene, c, rng), c)
 
     def _faces_met(
         self, origins: np.ndarray, dirs: np.ndarray, crease_hits: list[np.ndarray] | None = None
@@ -214,6 +227,9 @@ class AmbientProbe:
         out = np.full(len(origins), -1, np.int64)
         hit = np.isfinite(dist) & (tri >= 0)
         if not hit.any():
+            if self._record is not None:
+                nothing = np.full((len(origins), 3), np.nan, np.float32)
+                self._record.append((nothing, np.zeros((len(origins), 3), np.float32)))
             return out
         at = origins[hit] + dirs[hit] * dist[hit, None]
         k = min(NEAREST, len(self.points))
@@ -228,13 +244,25 @@ class AmbientProbe:
         i = near[np.arange(len(at)), first]
         back = np.einsum("ij,ij->i", self.normal[i], dirs[hit]) > 0.0  # sees its back
         out[hit] = 2 * i + back
+        if self._record is not None:  # where the rays hit, the face turned to them
+            at_all = np.full((len(origins), 3), np.nan, np.float32)
+            n_all = np.zeros((len(origins), 3), np.float32)
+            at_all[hit] = at
+            turn = np.where(np.einsum("ij,ij->i", n_hit, dirs[hit]) > 0.0, -1.0, 1.0)
+            n_all[hit] = n_hit * turn[:, None]
+            self._record.append((at_all, n_all))
         return out
 
     def _faces_seen(self, points: np.ndarray, normal: np.ndarray, rng) -> np.ndarray:
         cols = []
+        self._record = []
         for _ in range(GATHER_RAYS):
             d = _cosine(normal, rng.random(len(points)), rng.random(len(points)))
             cols.append(self._faces_met(points + normal * self.eps, d, self._near_hits))
+        at = np.stack([a for a, _ in self._record], axis=1)  # (P, GATHER_RAYS, 3)
+        facing = np.stack([f for _, f in self._record], axis=1)
+        self._record = None
+        self._hits.append((at, facing))
         return np.stack(cols, axis=1)
 
     def _seen_from_standing_points(
@@ -278,12 +306,19 @@ class AmbientProbe:
         if not len(self.points) or (not lights and sky_sh is None):
             return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
         n = len(self.points)
+        suns = [lt for lt in lights if lt.kind == "directional"]
+        lamps = [lt for lt in lights if lt.kind != "directional"]
         e0 = np.zeros(2 * n)
+        e0_suns = np.zeros(2 * n)
         for k, (side, c) in enumerate(zip((1.0, -1.0), self.closure, strict=True)):
-            e = _direct(self.points, self.normal * side, lights, self.caster, self.eps, True)
+            e = _direct(self.points, self.normal * side, lamps, self.caster, self.eps, True)
             if sky_sh is not None:
                 e = e + _sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)
             e0[k::2] = e
+            if suns:
+                e0_suns[k::2] = _direct(
+                    self.points, self.normal * side, suns, self.caster, self.eps
+                )
         c = np.concatenate([self.closure[0][:, None], self.closure[1][:, None]], 1).ravel()
         seen = c.sum()
         if seen <= 0.0:  # nothing sees anything: an open sheet, no light comes back
@@ -291,19 +326,33 @@ class AmbientProbe:
         hit = self.paths >= 0
         face = np.maximum(self.paths, 0)
         gain = np.where(hit, self.rho[face // 2], 0.0)  # what a bounce keeps on each path
-        total = np.zeros(2 * n)
-        e = e0
-        first = None
-        kept = 0.0
-        for _ in range(BOUNCES):
+        # The first bounce: the lamps' and the sky's light where the rays hit, from the face
+        # standing for each hit; the sun's exactly at the hit (a sharp patch on the floor).
+        sun_hits = np.zeros(gain.shape)
+        if suns:
+            at, facing = self.hit_at.reshape(-1, 3), self.hit_normal.reshape(-1, 3)
+            met = hit.ravel()
+            lit = np.zeros(len(at))
+            lit[met] = _direct(
+                at[met].astype(np.float64),
+                facing[met].astype(np.float64),
+                suns,
+                self.caster,
+                self.eps,
+            )
+            sun_hits = lit.reshape(gain.shape)
+        first = (gain * (e0[face] + sun_hits)).sum(axis=1) / GATHER_RAYS
+        e0 = e0 + e0_suns
+        total = first.copy()
+        e = first
+        kept = float(first.sum()) / float(e0.sum()) if e0.sum() > 0.0 else 0.0
+        for _ in range(BOUNCES - 1):
+            if kept <= 0.0:
+                break
             nxt = (gain * e[face]).sum(axis=1) / GATHER_RAYS
-            if first is None:
-                first = nxt
             before, e = float(e.sum()), nxt
             total += e
             kept = float(e.sum()) / before if before > 0.0 else 0.0
-            if kept <= 0.0:
-                break
         if kept > 0.0:  # the bounces left: a geometric tail
             kept = min(kept, MAX_KEPT)
             total += e * kept / (1.0 - kept)
@@ -317,7 +366,7 @@ class AmbientProbe:
             return AmbientEstimate(0.0, float((e0 * c).sum()) / seen, 0.0, self.mean_albedo, 0.0)
         value = total[view] / math.pi
         indirect = float((rho_v * value).sum()) / weight
-        bounce1 = float((rho_v * (first if first is not None else total)[view]).sum()) / weight
+        bounce1 = float((rho_v * first[view]).sum()) / weight
         facing = self.normal[view // 2] * np.where(view % 2 == 0, 1.0, -1.0)[:, None]
         mean_n = (rho_v[:, None] * facing).sum(axis=0) / weight
         gradient = _gradient(facing - mean_n, value - indirect, rho_v)
@@ -331,6 +380,20 @@ class AmbientProbe:
             (float(mean_n[0]), float(mean_n[1]), float(mean_n[2])),
             _occluder_return(self.crease, self.rho[np.arange(2 * n) // 2], e0, total, c),
         )
+
+
+def _seen_side(faces: np.ndarray, closure: np.ndarray) -> np.ndarray:
+    """``faces`` with a face that sees nothing (closure 0: a wall's outer face, in the sun
+    and the open sky) replaced by the other face of its point: a ray from inside the scene
+    cannot have met it (the point standing for the hit lay across a thin wall); -1 where
+    neither side sees anything."""
+    out = faces.copy()
+    met = out >= 0
+    blind = np.zeros(out.shape, bool)
+    blind[met] = closure[out[met]] <= 0.0
+    other = np.where(blind, out ^ 1, out)
+    out[blind] = np.where(closure[other[blind]] > 0.0, other[blind], -1)
+    return out
 
 
 def _occluder_return(
