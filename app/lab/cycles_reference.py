@@ -18,7 +18,8 @@ Units (checked by tests/test_reference.py, a white floor under a 1 cd lamp):
   concentrate their power), a sun of E lux has strength E.
 - Our lamps fall off as the physical 1 / d^2 (floored at 10 cm, ``app.scene.lamp_falloff``)
   times a smooth window that reaches 0 at ``range_m`` (render/shaders/shading.glsl); Cycles'
-  as 1 / d^2 with no range: the same up to the window (0.98 of it at a third of the range).
+  as 1 / d^2 with no range: the same up to the window (0.9997 of it at a third of the range, 0.92 at
+  two thirds).
 - ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` and
   ``render.ambient_estimate`` (app/ambient.py) have no counterpart: Cycles computes the light
   bounced off walls instead, which the estimate approximates.
