@@ -2,26 +2,51 @@
 
 Setting ``render.ambient_estimate``. One constant ambient (``render.ambient``) is the same in a
 dim corridor and a sunlit room. A path tracer's indirect light is the lamps' light bounced off
-walls and furniture, and for the even part of it a room behaves like an enclosure (the
-split-flux method of lighting design): the light leaving the surfaces after the first bounce is
-``rho E_direct`` summed over their area, it lands on the faces that see the room (a face's
-closure ``c``: the share of its hemisphere that meets the scene, 1 inside a room, 0 on a wall's
-outer face, less in an open model), and each further bounce keeps a share ``rho c`` of it, so
+walls and furniture; this finds it with a small radiosity solution on surface points spread
+over the scene by area, and takes its mean over what a person standing in the room sees.
 
-    E_indirect = E_1 / (1 - k),  E_1 = B_1 sum(A c^2) / sum(A c),
-    B_1 = sum(A rho E_direct c) / sum(A c),  k = sum(A rho c^2) / sum(A c)
+1. **The probe** (once per scene, :class:`AmbientProbe`): 2048 surface points, their
+   reflectance (the photon tracer's, ``app.photons``: base colour x texture mean x vertex
+   colours x (1 - metallic)) and, for each of their two faces, ``GATHER_RAYS`` cosine-weighted
+   rays: the point nearest to what each ray hits, and the face of it the ray sees. The share
+   of rays that hit anything is the face's closure ``c`` (1 inside a room, 0 on a wall's
+   outer face). Then the **standing points**: the faces that look up, are enclosed (``c`` at
+   least ``STANDING_CLOSURE``) and have headroom (nothing within ``STANDING_HEADROOM_M``
+   above), raised to eye height, plus the scene's spawn; from each, ``VIEW_RAYS`` rays in all
+   directions find the faces a person there sees.
+2. **The estimate** (per set of lights and sky, a few milliseconds): the direct irradiance
+   ``E_0`` of each face (the lamps' shadowed light, the sun's, the sky's through the
+   openings), then bounce by bounce ``E_(n+1)(x) = mean over x's rays of rho_h E_n(h)``
+   (a Lambertian face's exitance ``rho E`` seen along cosine-weighted rays is its irradiance
+   contribution), ``E_ind = E_1 + E_2 + ...``; the ambient radiance scale the shaders take
+   (``u_ambient``: ``albedo * u_ambient`` is the radiance a surface sends back) is the
+   reflectance-weighted mean of ``E_ind / pi`` over the faces seen from the standing points:
+   the mean that the picture's ambient term then has. The sun's first bounce is found
+   exactly where the rays hit (its patch on the floor is small and very bright); a hit is
+   never given a face that sees nothing (a wall's outer face in the sun and the open sky,
+   across a thin wall from the one the ray met).
+3. **By the way a surface faces** (``AmbientEstimate.gradient``): the weighted least-squares
+   slope of those faces' ``E_ind / pi`` against their normals, so that the shaders give a floor
+   that sees the lamp-lit ceiling more than the ceiling that sees the darker floor
+   (``max(u_ambient + u_ambient_gradient . n, 0)``, one dot product a pixel).
+4. **What a crease's occluders send back** (``AmbientEstimate.occluder_return``): the
+   ambient occlusion hides part of a crease's hemisphere behind a nearby surface, which is
+   lit itself; the faces in creases (their rays that end within ``CREASE_M``) reflect
+   ``rho (E_0 + E_ind)`` against the ``E_ind`` they hide, and shading.glsl
+   ``occluded_share`` gives a crease that much of the hidden part back.
 
-(a face receives ``c`` times the mean exitance of what it sees, and the faces that see the
-scene are the ones a viewer inside it sees, so they are weighted by ``c`` too)
+Why not the mean over every face (the split-flux enclosure formula this replaced, which gave
+the same mean in a closed grey box): a face hidden by something lying on it (the floor under a
+rug, the wall behind a picture, the floor under a sofa) counts as a face of the room there and
+receives nothing, so on the furnished showroom that mean was half of what Cycles shows on the
+walls, floor and ceiling one sees (docs/reference_flip.md). And the bounce takes the lamps'
+whole light: the range window (``app.scene.range_window``) is how far the renderer evaluates
+a lamp, not where its light ends (a path tracer has none), so the estimate uses the physical
+inverse square (``bounce_falloff``).
 
-and the ambient radiance scale the shaders take (``u_ambient``: ``albedo * u_ambient`` is the
-radiance a surface sends back) is ``E_indirect / pi``.
-
-The direct irradiance is the renderer's (``app.scene.lamp_falloff``, the spot cone, the sun's
-cosine), with shadows: a point sees a lamp only when the ray caster finds nothing in between.
-Points are spread over the scene's surface by area (seeded, so the same scene gives the same
-value); the reflectances are the photon tracer's (``app.photons``: base colour x texture mean x
-vertex colours x (1 - metallic)).
+The direct irradiance is the renderer's otherwise (the spot cone, the sun's cosine, with
+shadows: a point sees a lamp only when the ray caster finds nothing in between). Seeded: the
+same scene gives the same value.
 """
 
 from __future__ import annotations
@@ -31,15 +56,26 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from app.photons import _mesh_optics, _scene_geometry
 from app.raycast import RayCaster
-from app.scene import Light, Scene, lamp_falloff
+from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff
 from app.sky_light import occluders
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 SAMPLES = 2048  # surface points (the estimate moves by about 1 % between seeds)
-CLOSURE_RAYS = 4  # cosine-weighted rays per face that measure how much of the scene it sees
+GATHER_RAYS = 16  # cosine-weighted rays per face: its closure and what its bounce light sees
+VIEW_RAYS = 32  # rays in all directions from each standing point
+STANDING_POINTS = 64  # at most this many standing points (plus the spawn)
+STANDING_CLOSURE = 0.25  # a face one stands on sees the scene on at least this share
+STANDING_HEADROOM_M = 1.8  # and has nothing this close above it
+EYE_HEIGHT_M = 1.6
+NEAREST = 8  # points looked at for the one on a ray's hit surface
+CREASE_M = (
+    0.75  # a ray that ends this close met a nearby surface (the AO reach, render.ao_radius_m)
+)
+BOUNCES = 48  # bounces summed; the rest as a geometric tail
 SEED = 14
 #: A bounce keeps at most this share (a white closed box would otherwise diverge).
 MAX_KEPT = 0.95
@@ -51,9 +87,31 @@ class AmbientEstimate:
 
     ambient: float  # u_ambient: the radiance of a white surface from the even indirect light
     direct_mean_lux: float  # mean direct irradiance over the faces that see the scene
-    first_bounce_lux: float  # mean irradiance of the first bounce on those faces
+    first_bounce_lux: float  # mean irradiance of the first bounce on the faces seen
     mean_albedo: float  # area-weighted mean reflectance (luminance)
     closure: float  # mean share of the scene a face sees (1: every face inside a room)
+    # How the even light changes with the way a surface faces: a surface of normal n gets
+    # max(ambient + gradient . (n - mean_normal), 0) (the faces looking up see the lamp-lit
+    # ceiling, the ceiling sees the darker floor); zero: the same everywhere.
+    gradient: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mean_normal: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # What the surfaces hiding part of a crease's hemisphere send back, relative to the even
+    # light they hide: the faces in creases, lit by the lamps and the bounce, reflect
+    # rho (E_direct + E_indirect) against E_indirect (shading.glsl occluded_share; -1:
+    # unknown, the surface's own albedo stands for it).
+    occluder_return: float = -1.0
+
+    def along(self, normal: Sequence[float]) -> float:
+        """The even light of a surface facing ``normal`` (a unit vector)."""
+        n = np.asarray(normal, np.float64) - np.asarray(self.mean_normal, np.float64)
+        return max(self.ambient + float(np.asarray(self.gradient, np.float64) @ n), 0.0)
+
+    def base_and_gradient(self) -> tuple[float, tuple[float, float, float]]:
+        """``(a, g)`` with the even light ``max(a + g . n, 0)`` for a normal n: what the
+        shaders take (``u_ambient``, ``u_ambient_gradient``)."""
+        g = np.asarray(self.gradient, np.float64)
+        a = self.ambient - float(g @ np.asarray(self.mean_normal, np.float64))
+        return a, (float(g[0]), float(g[1]), float(g[2]))
 
 
 NONE = AmbientEstimate(0.0, 0.0, 0.0, 0.0, 0.0)
@@ -78,8 +136,9 @@ def estimate_ambient(
 
 class AmbientProbe:
     """What the estimate needs of a scene alone, found once: surface points spread by area,
-    their reflectance and how much of the scene each of their two faces sees. ``estimate``
-    then casts only the lamps' shadow rays, so a moving sun costs a few milliseconds."""
+    their reflectance, what each of their faces sees (the bounce's paths) and what a person
+    standing in the scene sees. ``estimate`` then casts only the lamps' shadow rays, so a
+    moving sun costs a few milliseconds."""
 
     def __init__(
         self,
@@ -90,6 +149,7 @@ class AmbientProbe:
     ) -> None:
         self.points = np.zeros((0, 3))
         self.mean_albedo = 0.0
+        self._record: list[tuple[np.ndarray, np.ndarray]] | None = None
         tris, owner, _vn = _scene_geometry(scene)
         if tris.shape[0] == 0:
             return
@@ -126,45 +186,251 @@ class AmbientProbe:
         self.rho = rho[pick]
         diag = float(np.linalg.norm(tris.reshape(-1, 3).max(0) - tris.reshape(-1, 3).min(0)))
         self.eps = 1e-4 * max(diag, 1e-3)
-        # Every surface is two-sided (as the renderer draws it): each face sees the scene by
-        # its closure c (a wall's inner face 1, its outer face 0, a table top in between).
-        self.closure = [
-            _closure(self.points, self.normal * side, caster, self.eps, rng) for side in (1.0, -1.0)
-        ]
+        self._tree = cKDTree(self.points)
+        hit_tris = caster.tri
+        hit_cross = np.cross(hit_tris[:, 1] - hit_tris[:, 0], hit_tris[:, 2] - hit_tris[:, 0])
+        self._tri_normal = hit_cross / np.maximum(np.linalg.norm(hit_cross, axis=1), 1e-30)[:, None]
+        self._plane_tol = max(5.0 * self.eps, 2e-3)  # a rug's thickness is more
+        # Every surface is two-sided (as the renderer draws it): face k of point i is
+        # 2 i + k (k = 0 along its normal, 1 against it). Each face's rays: the face they
+        # meet (-1: a miss), and the share that meet anything (the closure c).
+        n = len(self.points)
+        self.paths = np.full((2 * n, GATHER_RAYS), -1, np.int64)
+        self.crease = np.zeros(2 * n)  # per face, the share of its rays that end nearby
+        self._hits: list[tuple[np.ndarray, np.ndarray]] = []
+        for k, side in enumerate((1.0, -1.0)):
+            self._near_hits: list[np.ndarray] = []
+            self.paths[k::2] = self._faces_seen(self.points, self.normal * side, rng)
+            self.crease[k::2] = np.mean(self._near_hits, axis=0)
+        # Where each face's rays hit (NaN: a miss) and the hit surface's normal turned to the
+        # ray: the sun's first bounce is found there exactly (its patch is small and bright).
+        self.hit_at = np.empty((2 * n, GATHER_RAYS, 3), np.float32)
+        self.hit_normal = np.empty((2 * n, GATHER_RAYS, 3), np.float32)
+        for k, (at, facing) in enumerate(self._hits):
+            self.hit_at[k::2], self.hit_normal[k::2] = at, facing
+        del self._hits
+        c = (self.paths >= 0).mean(axis=1)
+        self.closure = [c[0::2], c[1::2]]
+        self.paths = _seen_side(self.paths, c)
+        self.seen = _seen_side(self._seen_from_standing_points(scene, c, rng), c)
+
+    def _faces_met(
+        self, origins: np.ndarray, dirs: np.ndarray, crease_hits: list[np.ndarray] | None = None
+    ) -> np.ndarray:
+        """The face (2 i + k) that stands for where each ray first meets the scene, -1 on a
+        miss: of the ``NEAREST`` points nearest to the hit, the nearest one on the hit's own
+        surface (in its plane, facing the same way), so that a hit on a rug does not take the
+        floor hidden under it; the nearest point when none is."""
+        dist, tri = self.caster.cast_triangles(origins, dirs)
+        if crease_hits is not None:  # the rays that end nearby (see CREASE_M)
+            crease_hits.append(dist < CREASE_M)
+        out = np.full(len(origins), -1, np.int64)
+        hit = np.isfinite(dist) & (tri >= 0)
+        if not hit.any():
+            if self._record is not None:
+                nothing = np.full((len(origins), 3), np.nan, np.float32)
+                self._record.append((nothing, np.zeros((len(origins), 3), np.float32)))
+            return out
+        at = origins[hit] + dirs[hit] * dist[hit, None]
+        k = min(NEAREST, len(self.points))
+        _, near = self._tree.query(at, k=k)
+        near = np.asarray(near, np.int64).reshape(len(at), k)
+        n_hit = self._tri_normal[tri[hit]]
+        n_near = self.normal[near]  # (H, k, 3)
+        same_way = np.abs(np.einsum("hkj,hj->hk", n_near, n_hit)) > 0.9
+        offset = np.abs(np.einsum("hkj,hkj->hk", at[:, None, :] - self.points[near], n_near))
+        on_it = same_way & (offset < self._plane_tol)
+        first = np.where(on_it.any(axis=1), on_it.argmax(axis=1), 0)
+        i = near[np.arange(len(at)), first]
+        back = np.einsum("ij,ij->i", self.normal[i], dirs[hit]) > 0.0  # sees its back
+        out[hit] = 2 * i + back
+        if self._record is not None:  # where the rays hit, the face turned to them
+            at_all = np.full((len(origins), 3), np.nan, np.float32)
+            n_all = np.zeros((len(origins), 3), np.float32)
+            at_all[hit] = at
+            turn = np.where(np.einsum("ij,ij->i", n_hit, dirs[hit]) > 0.0, -1.0, 1.0)
+            n_all[hit] = n_hit * turn[:, None]
+            self._record.append((at_all, n_all))
+        return out
+
+    def _faces_seen(self, points: np.ndarray, normal: np.ndarray, rng) -> np.ndarray:
+        cols = []
+        self._record = []
+        for _ in range(GATHER_RAYS):
+            d = _cosine(normal, rng.random(len(points)), rng.random(len(points)))
+            cols.append(self._faces_met(points + normal * self.eps, d, self._near_hits))
+        at = np.stack([a for a, _ in self._record], axis=1)  # (P, GATHER_RAYS, 3)
+        facing = np.stack([f for _, f in self._record], axis=1)
+        self._record = None
+        self._hits.append((at, facing))
+        return np.stack(cols, axis=1)
+
+    def _seen_from_standing_points(
+        self, scene: Scene, closure: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        """The faces met by rays in all directions from eye height above the faces one could
+        stand on (looking up, enclosed, with headroom) and from the spawn."""
+        up = np.array([0.0, 1.0, 0.0])
+        faces = np.arange(2 * len(self.points))
+        facing = self.normal[faces // 2] * np.where(faces % 2 == 0, 1.0, -1.0)[:, None]
+        floor = faces[(facing @ up > 0.7) & (closure >= STANDING_CLOSURE)]
+        if floor.size:
+            base = self.points[floor // 2] + up * self.eps
+            room, _ = self.caster.cast_many(base, np.broadcast_to(up, base.shape))
+            floor = floor[room >= STANDING_HEADROOM_M]
+        if floor.size > STANDING_POINTS:
+            floor = rng.choice(floor, STANDING_POINTS, replace=False)
+        eyes = [self.points[floor // 2] + up * EYE_HEIGHT_M]
+        spawn = np.asarray(scene.spawn.position, np.float64).reshape(1, 3)
+        if np.isfinite(spawn).all():
+            eyes.append(spawn)
+        eye = np.concatenate(eyes)
+        origins = np.repeat(eye, VIEW_RAYS, axis=0)
+        z = rng.uniform(-1.0, 1.0, len(origins))
+        phi = rng.uniform(0.0, 2.0 * math.pi, len(origins))
+        r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+        dirs = np.stack([r * np.cos(phi), z, r * np.sin(phi)], axis=1)
+        met = self._faces_met(origins, dirs)
+        return met[met >= 0]
 
     def estimate(
         self, lights: Sequence[Light], sky_sh: np.ndarray | None = None
     ) -> AmbientEstimate:
-        """The estimate under ``lights``: each face takes the lamps' light from its own side.
-        A face receives c times the mean exitance of what it sees (reciprocity), and what it
-        sees is weighted by c too: B_1 = sum(A rho E c) / sum(A c), E_1 = B_1 sum(A c^2) /
-        sum(A c); each further bounce keeps sum(A rho c^2) / sum(A c).
+        """The estimate under ``lights``: each face takes the lamps' light from its own side,
+        the bounces go along the probe's paths, and the indirect light is averaged over the
+        faces seen from the standing points, weighted by their reflectance.
 
         ``sky_sh``: the sky's light (``app.sky.SkyBake.sh``, light leaving a white surface per
         normal, cd/m2) with daylight on; a face then also takes pi SH(n) times the share of
         its rays that leave the scene (1 - c), and that light bounces as the lamps' does."""
         if not len(self.points) or (not lights and sky_sh is None):
             return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
-        r = self.rho
-        sent = seen = seen2 = kept_sum = direct_sum = 0.0
-        for side, c in zip((1.0, -1.0), self.closure, strict=True):
-            e = _direct(self.points, self.normal * side, lights, self.caster, self.eps)
+        n = len(self.points)
+        suns = [lt for lt in lights if lt.kind == "directional"]
+        lamps = [lt for lt in lights if lt.kind != "directional"]
+        e0 = np.zeros(2 * n)
+        e0_suns = np.zeros(2 * n)
+        for k, (side, c) in enumerate(zip((1.0, -1.0), self.closure, strict=True)):
+            e = _direct(self.points, self.normal * side, lamps, self.caster, self.eps, True)
             if sky_sh is not None:
                 e = e + _sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)
-            sent += float((r * e * c).sum())
-            seen += float(c.sum())
-            seen2 += float((c * c).sum())
-            kept_sum += float((r * c * c).sum())
-            direct_sum += float((e * c).sum())
+            e0[k::2] = e
+            if suns:
+                e0_suns[k::2] = _direct(
+                    self.points, self.normal * side, suns, self.caster, self.eps
+                )
+        c = np.concatenate([self.closure[0][:, None], self.closure[1][:, None]], 1).ravel()
+        seen = c.sum()
         if seen <= 0.0:  # nothing sees anything: an open sheet, no light comes back
             return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
-        first = sent / seen * (seen2 / seen)
-        kept = min(kept_sum / seen, MAX_KEPT)
-        indirect = first / (1.0 - kept)
-        closure = seen / (2.0 * len(self.points))
+        hit = self.paths >= 0
+        face = np.maximum(self.paths, 0)
+        gain = np.where(hit, self.rho[face // 2], 0.0)  # what a bounce keeps on each path
+        # The first bounce: the lamps' and the sky's light where the rays hit, from the face
+        # standing for each hit; the sun's exactly at the hit (a sharp patch on the floor).
+        sun_hits = np.zeros(gain.shape)
+        if suns:
+            at, facing = self.hit_at.reshape(-1, 3), self.hit_normal.reshape(-1, 3)
+            met = hit.ravel()
+            lit = np.zeros(len(at))
+            lit[met] = _direct(
+                at[met].astype(np.float64),
+                facing[met].astype(np.float64),
+                suns,
+                self.caster,
+                self.eps,
+            )
+            sun_hits = lit.reshape(gain.shape)
+        first = (gain * (e0[face] + sun_hits)).sum(axis=1) / GATHER_RAYS
+        e0 = e0 + e0_suns
+        total = first.copy()
+        e = first
+        kept = float(first.sum()) / float(e0.sum()) if e0.sum() > 0.0 else 0.0
+        for _ in range(BOUNCES - 1):
+            if kept <= 0.0:
+                break
+            nxt = (gain * e[face]).sum(axis=1) / GATHER_RAYS
+            before, e = float(e.sum()), nxt
+            total += e
+            kept = float(e.sum()) / before if before > 0.0 else 0.0
+        if kept > 0.0:  # the bounces left: a geometric tail
+            kept = min(kept, MAX_KEPT)
+            total += e * kept / (1.0 - kept)
+        view = self.seen if len(self.seen) else np.flatnonzero(c > 0.0)
+        rho_v = self.rho[view // 2]
+        weight = float(rho_v.sum())
+        if weight <= 0.0:  # every face one sees is black: its ambient term is black anyway
+            rho_v = np.ones(len(view))
+            weight = float(len(view))
+        if weight <= 0.0:
+            return AmbientEstimate(0.0, float((e0 * c).sum()) / seen, 0.0, self.mean_albedo, 0.0)
+        value = total[view] / math.pi
+        indirect = float((rho_v * value).sum()) / weight
+        bounce1 = float((rho_v * first[view]).sum()) / weight
+        facing = self.normal[view // 2] * np.where(view % 2 == 0, 1.0, -1.0)[:, None]
+        mean_n = (rho_v[:, None] * facing).sum(axis=0) / weight
+        gradient = _gradient(facing - mean_n, value - indirect, rho_v)
         return AmbientEstimate(
-            indirect / math.pi, direct_sum / seen, first, self.mean_albedo, closure
+            indirect,
+            float((e0 * c).sum()) / seen,
+            bounce1,
+            self.mean_albedo,
+            seen / (2.0 * n),
+            gradient,
+            (float(mean_n[0]), float(mean_n[1]), float(mean_n[2])),
+            _occluder_return(self.crease, self.rho[np.arange(2 * n) // 2], e0, total, c),
         )
+
+
+def _seen_side(faces: np.ndarray, closure: np.ndarray) -> np.ndarray:
+    """``faces`` with a face that sees nothing (closure 0: a wall's outer face, in the sun
+    and the open sky) replaced by the other face of its point: a ray from inside the scene
+    cannot have met it (the point standing for the hit lay across a thin wall); -1 where
+    neither side sees anything."""
+    out = faces.copy()
+    met = out >= 0
+    blind = np.zeros(out.shape, bool)
+    blind[met] = closure[out[met]] <= 0.0
+    other = np.where(blind, out ^ 1, out)
+    out[blind] = np.where(closure[other[blind]] > 0.0, other[blind], -1)
+    return out
+
+
+def _occluder_return(
+    crease: np.ndarray, rho: np.ndarray, direct: np.ndarray, indirect: np.ndarray, c: np.ndarray
+) -> float:
+    """What the surfaces that hide a crease's light send back against the even light they
+    hide: the mean exitance ``rho (E_direct + E_indirect)`` of the faces in creases (each by
+    the share of its rays that end within ``CREASE_M``: the faces that hide one another) over
+    their mean indirect irradiance; -1 where no face is in a crease."""
+    w = crease * (c > 0.0)
+    hidden = float((w * indirect).sum())
+    if hidden <= 0.0:
+        return -1.0
+    return float((w * rho * (direct + indirect)).sum()) / hidden
+
+
+def _gradient(dn: np.ndarray, dv: np.ndarray, w: np.ndarray) -> tuple[float, float, float]:
+    """The weighted least-squares slope g of ``dv ~ g . dn`` (both centred), (0, 0, 0) where
+    the faces seen do not face enough ways to tell."""
+    a = (w[:, None, None] * dn[:, :, None] * dn[:, None, :]).sum(axis=0)
+    b = (w[:, None] * dn * dv[:, None]).sum(axis=0)
+    if not np.isfinite(a).all() or not np.isfinite(b).all():
+        return (0.0, 0.0, 0.0)
+    try:
+        # a little ridge: a direction the faces hardly vary in gets no slope
+        g = np.linalg.solve(a + np.eye(3) * (1e-3 * max(float(np.trace(a)), 1e-12)), b)
+    except np.linalg.LinAlgError:
+        return (0.0, 0.0, 0.0)
+    return (float(g[0]), float(g[1]), float(g[2]))
+
+
+def bounce_falloff(d2: np.ndarray, range_m: float) -> np.ndarray:
+    """A lamp's irradiance per candela for its bounced light: the physical inverse square
+    with the renderer's 10 cm floor, without the range window (the renderer stops drawing a
+    lamp's direct light there; its light goes on and comes back off the walls)."""
+    del range_m
+    return 1.0 / np.maximum(np.asarray(d2, np.float64), LIGHT_MIN_DIST2)
 
 
 def _direct(
@@ -173,8 +439,10 @@ def _direct(
     lights: Sequence[Light],
     caster: RayCaster,
     eps: float,
+    whole_lamp: bool = False,
 ) -> np.ndarray:
-    """Direct irradiance (lux, luminance of the light's colour) on faces with ``normal``."""
+    """Direct irradiance (lux, luminance of the light's colour) on faces with ``normal``;
+    ``whole_lamp``: without the range window (:func:`bounce_falloff`)."""
     out = np.zeros(points.shape[0])
     for light in lights:
         lum = float(np.asarray(light.color, np.float64) @ LUMA) * float(light.intensity)
@@ -197,7 +465,8 @@ def _direct(
         dist_l = np.sqrt(d2)
         ldir = to_l / np.maximum(dist_l, 1e-9)[:, None]
         cos = np.einsum("ij,ij->i", normal, ldir)
-        fall = lamp_falloff(d2, float(light.range_m)) * _cone(light, ldir)
+        falloff = bounce_falloff if whole_lamp else lamp_falloff
+        fall = falloff(d2, float(light.range_m)) * _cone(light, ldir)
         lit = (cos > 0.0) & (fall > 0.0)
         if not lit.any():
             continue
@@ -227,18 +496,6 @@ def _cone(light: Light, to_light: np.ndarray) -> np.ndarray:
     cos_o, cos_i = math.cos(math.radians(outer)), math.cos(math.radians(inner))
     t = np.clip(((-to_light) @ axis - cos_o) / max(1e-3, cos_i - cos_o), 0.0, 1.0)
     return t * t
-
-
-def _closure(
-    points: np.ndarray, normal: np.ndarray, caster: RayCaster, eps: float, rng: np.random.Generator
-) -> np.ndarray:
-    """Per face, the share of cosine-weighted rays along ``normal`` that hit the scene."""
-    hits = np.zeros(len(points))
-    for _ in range(CLOSURE_RAYS):
-        d = _cosine(normal, rng.random(len(points)), rng.random(len(points)))
-        dist, _ = caster.cast_many(points + normal * eps, d)
-        hits += np.isfinite(dist)
-    return hits / CLOSURE_RAYS
 
 
 def _cosine(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:

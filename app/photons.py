@@ -191,10 +191,10 @@ def trace_photons(
                 d2 = np.where(is_point, dist * dist, 0.0)
                 with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
                     x = d2 / np.where(is_point, reach * reach, 1.0)
-                    # lamp_falloff(d2) * d^2: the window, and the 10 cm floor near the lamp
-                    factor = (
-                        np.clip(1.0 - x * x, 0.0, 1.0) ** 2 * d2 / np.maximum(d2, LIGHT_MIN_DIST2)
-                    )
+                    # lamp_falloff(d2) * d^2: the window (app.scene.range_window), and the
+                    # 10 cm floor near the lamp
+                    window = np.clip(1.0 - (x * x) ** 2, 0.0, 1.0) ** 2
+                    factor = window * d2 / np.maximum(d2, LIGHT_MIN_DIST2)
                 flux = np.where(is_point[:, None], flux * factor[:, None], flux)
                 store = ~(is_point | is_beam | (sky_first & (not STORE_SKY_FIRST_HIT)))
             else:

@@ -115,9 +115,11 @@ LIGHT_MIN_DIST2 = 0.01
 
 def range_window(d2: Any, range_m: float) -> Any:
     """The smooth window that takes a lamp's light to exactly 0 at ``range_m`` (so culling by
-    range is exact): ``clamp(1 - (d^2 / r^2)^2, 0, 1)^2``, 1 near the lamp."""
+    range is exact): ``clamp(1 - (d^2 / r^2)^4, 0, 1)^2``, 1 near the lamp. Flat for most of
+    the range (0.9997 at a third, 0.92 at two thirds: the physical inverse square there),
+    falling smoothly to 0 over its last third."""
     x = np.asarray(d2, np.float64) / (float(range_m) ** 2)
-    return np.clip(1.0 - x * x, 0.0, 1.0) ** 2
+    return np.clip(1.0 - (x * x) ** 2, 0.0, 1.0) ** 2
 
 
 def lamp_falloff(d2: Any, range_m: float) -> Any:

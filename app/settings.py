@@ -206,6 +206,14 @@ class RenderSettings:
         label="Even light from the lamps",
         paper="Split-flux estimate of the indirect light (lighting design's enclosure model)",
     )
+    normal_maps: bool = _opt(
+        True,
+        "Shows the fine relief a material gives its surface, such as the joints between "
+        "tiles or the grain of boards, in how the light falls on it. Off: every surface is "
+        "lit as if it were perfectly flat.",
+        label="Surface relief (normal maps)",
+        paper="Normal mapping (glTF normal texture)",
+    )
     ao: str = _opt(
         "off",
         "Darkens the even ambient light in corners, creases and under furniture, where "

@@ -368,6 +368,8 @@ def _showroom_materials(textures: dict[str, Texture]) -> _Materials:
     m = _Materials(textures)
     m.add("wallpaper", "wallpaper", roughness=0.9)
     m.add("parquet", "parquet", roughness=0.35)
+    # the planks' relief (assets.textures.parquet_relief): render.normal_maps
+    m.materials[m["parquet"]].normal_texture = m._tex_index["parquet_relief"]
     m.add("ceiling", "ceiling", roughness=0.95)
     m.add("white_paint", color=srgb(236, 232, 224), roughness=0.45)
     for name in PAINTING_ASPECTS:

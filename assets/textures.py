@@ -166,9 +166,10 @@ def wallpaper(size: int = 512) -> Texture:
     return _texture("wallpaper", np.clip(img, 0, 1))
 
 
-def parquet(size: int = 512) -> Texture:
-    """Oak plank floor: 8 rows of 2 planks per tile, staggered, with grain and dark joints."""
-    rng = _rng(2)
+def _planks(size: int, rng: np.random.Generator):
+    """The parquet's layout (8 rows of 2 staggered planks per tile): rows, columns, the row
+    of each texel, the row height, the staggered x, the plank length and each texel's plank.
+    The first draw of ``rng`` (the rows' offsets), so the colour and the relief agree."""
     rows, plank_len = 8, size // 2
     row_h = size // rows
     y, x = np.mgrid[0:size, 0:size]
@@ -176,6 +177,13 @@ def parquet(size: int = 512) -> Texture:
     offsets = rng.integers(0, plank_len, rows)
     xs = x + offsets[row]
     plank = row * 2 + (xs // plank_len) % 2  # 16 planks per tile, seamless horizontally
+    return rows, y, row_h, xs, plank_len, plank
+
+
+def parquet(size: int = 512) -> Texture:
+    """Oak plank floor: 8 rows of 2 planks per tile, staggered, with grain and dark joints."""
+    rng = _rng(2)
+    rows, y, row_h, xs, plank_len, plank = _planks(size, rng)
     tone = rng.normal(0.0, 1.0, (rows * 2, 3)).astype(np.float32)
     base = _rgb((168, 116, 70)) * (1.0 + 0.10 * tone[:, :1] + 0.03 * tone)
     grain_warp = _noise(rng, size, 48.0, 3.0)  # streaks run along x (the plank length)
@@ -189,6 +197,33 @@ def parquet(size: int = 512) -> Texture:
     joint_x = (xs % plank_len == 0) | (xs % plank_len == 1)
     img[joint_y | joint_x] *= 0.45
     return _texture("parquet", np.clip(img, 0, 1))
+
+
+def parquet_relief(size: int = 512) -> Texture:
+    """The parquet's tangent-space normal map (glTF: linear, x right, y up, z out of the
+    surface): the planks' bevelled edges dip into the joints of :func:`parquet` (the same
+    layout), each plank lies a little out of level, and the grain is faintly raised. Seen
+    under a grazing light, the joints and the planks' edges catch and lose it."""
+    rng = _rng(2)
+    _rows, y, row_h, xs, plank_len, plank = _planks(size, rng)
+    relief = _rng(12)  # its own draws after the shared layout
+    # Height in texels (one texel is about 4 mm on the floor, 2 m per tile): 1 on a plank,
+    # a bevel of 2 texels down to the joint, 0 in it.
+    to_row_edge = np.minimum(y % row_h, row_h - 1 - y % row_h).astype(np.float32)
+    along = xs % plank_len
+    to_end = np.minimum(along, plank_len - 1 - along).astype(np.float32)
+    edge = np.minimum(to_row_edge, to_end)
+    height = 0.6 * _smoothstep(0.0, 2.5, edge)
+    # each plank out of level by a fraction of a degree, the grain raised a little
+    tilt = relief.normal(0.0, 0.004, (plank.max() + 1, 2)).astype(np.float32)
+    grain = 0.08 * _noise(relief, size, 24.0, 0.8)
+    height = height + grain
+    # Gradients with wrap-around (the tile repeats); image rows run down, glTF's y up.
+    dx = 0.5 * (np.roll(height, -1, axis=1) - np.roll(height, 1, axis=1)) + tilt[plank, 0]
+    dy_down = 0.5 * (np.roll(height, -1, axis=0) - np.roll(height, 1, axis=0)) + tilt[plank, 1]
+    n = np.stack([-dx, dy_down, np.ones_like(dx)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return _texture("parquet_relief", n * 0.5 + 0.5)
 
 
 def ceiling(size: int = 64) -> Texture:
@@ -445,4 +480,5 @@ def make_textures() -> dict[str, Texture]:
         painting_colorfield,
     ]
     textures = [make() for make in makers]
+    textures.append(parquet_relief())  # the floor's normal map (linear data, not a colour)
     return {t.name: t for t in textures}

@@ -67,7 +67,7 @@ class FrameContext:
     eyes: list[EyeView]
     scene: GpuScene
     light_scale: float
-    ambient: float
+    ambient: float  # u_ambient: the even light's level (see ambient_gradient)
     exposure: float
     out: moderngl.Framebuffer
     out_origin: tuple[int, int]  # lower-left of the stereo view inside ``out``
@@ -86,6 +86,14 @@ class FrameContext:
     refining: bool = False
     refine_sample: int = 0
     refine_target: int = 0
+    # render.normal_maps: the material variants sample their normal maps (off: flat normals)
+    normal_maps: bool = True
+    # The even light of a surface of normal n: max(ambient + ambient_gradient . n, 0)
+    # (app.ambient.AmbientEstimate.base_and_gradient; zero with the fixed ambient)
+    ambient_gradient: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # What the surfaces that hide part of a crease's hemisphere send back against the even
+    # light they hide (app.ambient.AmbientEstimate.occluder_return); negative: unknown.
+    occluder_return: float = -1.0
 
 
 # Resource name -> where the renderer's targets keep it: (table, attribute).

@@ -103,6 +103,8 @@ def scene_uniforms(prog: moderngl.Program | moderngl.ComputeShader, frame: Frame
             "u_light_count": len(frame.scene.lights),
             "u_light_scale": frame.light_scale,
             "u_ambient": frame.ambient,
+            "u_ambient_gradient": tuple(frame.ambient_gradient),
+            "u_occluder_return": frame.occluder_return,
         },
     )
 
@@ -127,6 +129,8 @@ def _draw_meshes(
     tcr = frame.levels is not None
 
     def variant(defines: dict[str, object]) -> moderngl.Program:
+        if not frame.normal_maps:  # render.normal_maps off: the flat variant, no map sampled
+            defines.pop("HAS_TANGENTS", None)
         if ao is not None:
             defines["AO"] = True
         if sky is not None:  # the forward path's daylight (render.sky)

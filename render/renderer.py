@@ -17,7 +17,7 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
-from app.ambient import AmbientProbe, probe_for
+from app.ambient import AmbientEstimate, AmbientProbe, probe_for
 from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import Governor, apply_overrides
@@ -152,7 +152,7 @@ class Renderer:
         self._sun_key: tuple | None = None
         self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
         # The estimated ambient term for a scene and its lights, and the scene's probe.
-        self._ambient: tuple[GpuScene, tuple, float] | None = None
+        self._ambient: tuple[GpuScene, tuple, AmbientEstimate] | None = None
         self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
         self.targets: list[EyeTargets] = []
         self.frames = 0
@@ -300,11 +300,15 @@ class Renderer:
         caps: list[tuple[float, float, float]] = (
             frame.cps_caps if frame.cps_caps and len(frame.cps_caps) == 2 else [(0, 0, 0)] * 2
         )
+        ambient, gradient = self.ambient_terms()
+        est = self._ambient_estimate()
         return FrameContext(
             eyes=frame.eyes,
             scene=self.gpu_scene or self._empty,
             light_scale=1.0,  # lamps as the model gives them: Brightness is in the exposure
-            ambient=self.ambient_term(),
+            ambient=ambient,
+            ambient_gradient=gradient,
+            occluder_return=-1.0 if est is None else est.occluder_return,
             exposure=self._exposure_scale * r.exposure,
             out=out,
             out_origin=origin,
@@ -319,21 +323,36 @@ class Renderer:
             refining=bool(frame.refining and str(r.refine) != "off"),
             refine_sample=int(frame.sample),
             refine_target=int(frame.refine_target),
+            normal_maps=bool(r.normal_maps),
         )
 
     def ambient_term(self) -> float:
         """The frame's ambient term: estimated from the frame's lights and the sky
         (``app.ambient``, once per scene, set of lights and sky) with
         ``render.ambient_estimate``, else ``render.ambient``; a
-        photon map in use brings the bounced light itself, so it keeps ``render.ambient``."""
+        photon map in use brings the bounced light itself, so it keeps ``render.ambient``.
+        With the estimate this is its mean; the shaders take it by the way a surface faces
+        (:meth:`ambient_terms`)."""
+        est = self._ambient_estimate()
+        return float(self.settings.render.ambient) if est is None else est.ambient
+
+    def ambient_terms(self) -> tuple[float, tuple[float, float, float]]:
+        """``u_ambient`` and ``u_ambient_gradient``: the even light of a surface of normal n
+        is ``max(u_ambient + gradient . n, 0)`` (``AmbientEstimate.base_and_gradient``)."""
+        est = self._ambient_estimate()
+        if est is None:
+            return float(self.settings.render.ambient), (0.0, 0.0, 0.0)
+        return est.base_and_gradient()
+
+    def _ambient_estimate(self) -> AmbientEstimate | None:
         r = self.settings.render
         scene = self.gpu_scene
         if not r.ambient_estimate or scene is None:
-            return float(r.ambient)
+            return None
         photons = self._by_name.get("photons")  # a renderer may run without the pass
         if isinstance(photons, PhotonPass) and photons.photons is not None:
             if deferred(self.settings):
-                return float(r.ambient)
+                return None
         lights = self.frame_lights()
         sky = scene_sky(self.settings.sky, scene.scene) if self.settings.sky.enabled else None
         key = (list(lights), sky_key(sky) if sky is not None else None)
@@ -349,7 +368,7 @@ class Renderer:
                 if sky is not None and isinstance(daylight, DaylightPass)
                 else None
             )
-            value = self._ambient_probe[1].estimate(lights, sh).ambient
+            value = self._ambient_probe[1].estimate(lights, sh)
             self._ambient = cached = (scene, key, value)
         return cached[2]
 

@@ -82,18 +82,48 @@ def _wall_luminance(s: Settings) -> float:
     return float(np.median(lum))
 
 
+def _env_brdf(roughness: float, ndv: float) -> tuple[float, float]:
+    """shading.glsl ``env_brdf`` (Karis's fit of the split-sum environment BRDF)."""
+    c0, c1 = np.array([-1.0, -0.0275, -0.572, 0.022]), np.array([1.0, 0.0425, 1.04, -0.04])
+    r = roughness * c0 + c1
+    a004 = min(r[0] * r[0], 2.0 ** (-9.28 * ndv)) * r[0] + r[1]
+    return -1.04 * a004 + r[2], 1.04 * a004 + r[3]
+
+
 def test_the_frame_takes_the_estimate():
     """The wall facing the camera is lit by the lamp plus the even light: with the estimate,
-    brighter by albedo x (estimate - render.ambient)."""
+    brighter by (albedo + its specular share) x (the estimate for the way the wall faces -
+    render.ambient)."""
     s = Settings()
     s.set("render.ambient_estimate", False)
     fixed = _wall_luminance(s)
     s.set("render.ambient_estimate", True)
     estimated = _wall_luminance(s)
     scene = _box(0.5, [PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)])
-    want = 0.5 * (estimate_ambient(scene).ambient - s.render.ambient)
+    x, y = _env_brdf(scene.materials[0].roughness, 1.0)  # the wall seen head-on
+    reflects = 0.5 + 0.04 * x + y
+    want = reflects * (estimate_ambient(scene).along((0.0, 0.0, 1.0)) - s.render.ambient)
     assert want > 0.05
     assert estimated - fixed == pytest.approx(want, rel=0.05)
+
+
+def test_the_even_light_is_brighter_where_the_lamps_light_what_a_face_sees():
+    """A low lamp under a white ceiling over a dark floor: the floor, which sees the lit
+    ceiling, gets more of the bounce than the ceiling, which sees the dark floor; the
+    estimate's gradient says so, and the mean is what a person standing there sees."""
+    walls = _box_walls()
+    mats = [Material("grey", (0.5, 0.5, 0.5, 1.0)), Material("white", (0.9, 0.9, 0.9, 1.0))]
+    mats.append(Material("dark", (0.1, 0.1, 0.1, 1.0)))
+    for m in walls:
+        if m.name == "wall11":  # the ceiling
+            m.material = 1
+        elif m.name == "wall1-1":  # the floor
+            m.material = 2
+    lamp = PointLight((0.0, HALF[1] - 0.3, 0.0), (1.0, 1.0, 1.0), 8.0, 1e4)
+    est = estimate_ambient(Scene("room", walls, mats, lights=[lamp]))
+    up, down = est.along((0.0, 1.0, 0.0)), est.along((0.0, -1.0, 0.0))
+    assert up > 1.5 * down > 0.0
+    assert down < est.ambient < up
 
 
 def test_a_glowing_pane_lets_the_sky_and_the_sun_in():

@@ -188,8 +188,10 @@ def test_ao_off_or_at_no_strength_is_exactly_the_plain_picture(host, corner):
     eyes = draw(host, corner, render__ao="off")
     assert not host.renderer.ao.enabled
     plain = [hdr(host, e) for e in (0, 1)]
-    # the ambient term alone, the same in the corner as in the open
-    assert around(plain[0], pixel(eyes[0], CORNER)) == pytest.approx(AMBIENT * ALBEDO, rel=0.01)
+    # the ambient term alone, the same in the corner as in the open (the albedo and the
+    # specular lobe's share of the even light, a few %: shading.glsl env_brdf)
+    got = around(plain[0], pixel(eyes[0], CORNER))
+    assert AMBIENT * ALBEDO <= got <= AMBIENT * (ALBEDO + 0.05)
     for method in ("screen", "baked"):
         draw(host, corner, render__ao=method, render__ao_strength=0.0)
         for e in (0, 1):

@@ -271,6 +271,9 @@ def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, q
     panel.refresh_stats()
     assert panel.labels["status"].text().startswith("off (the scene does not ask")
     assert window.photon_cache.map is None  # nothing traced for a scene that does not ask
+    # Against the fixed ambient light the bounce comes on top of (the estimate from the lamps
+    # is about as bright as the photon map: app/ambient.py, docs/reference_flip.md).
+    s.render.ambient_estimate = False
     before = grab(window)
     s.photons.indirect = "gather"  # the paper's gather: its grid, reuse and overlay
     panel.controls.editors["photons.photons"].setValue(4096)

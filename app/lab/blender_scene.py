@@ -334,6 +334,11 @@ def render(job_dir: Path) -> None:
     cy.sample_clamp_direct = 0.0
     cy.sample_clamp_indirect = 0.0  # no clamp: the indirect light keeps its energy
     cy.caustics_reflective = cy.caustics_refractive = False
+    bounces = job.get("max_bounces")
+    if bounces is not None:  # 0: direct light only (transparent shadows still pass panes)
+        cy.max_bounces = int(bounces)
+        cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = int(bounces)
+        cy.volume_bounces = int(bounces)
     # Linear radiance out: no view transform, no look, no film exposure.
     scene.view_settings.view_transform = "Standard"
     scene.view_settings.look = "None"

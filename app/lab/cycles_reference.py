@@ -18,7 +18,8 @@ Units (checked by tests/test_reference.py, a white floor under a 1 cd lamp):
   concentrate their power), a sun of E lux has strength E.
 - Our lamps fall off as the physical 1 / d^2 (floored at 10 cm, ``app.scene.lamp_falloff``)
   times a smooth window that reaches 0 at ``range_m`` (render/shaders/shading.glsl); Cycles'
-  as 1 / d^2 with no range: the same up to the window (0.98 of it at a third of the range).
+  as 1 / d^2 with no range: the same up to the window (0.9997 of it at a third of the range, 0.92 at
+  two thirds).
 - ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` and
   ``render.ambient_estimate`` (app/ambient.py) have no counterpart: Cycles computes the light
   bounced off walls instead, which the estimate approximates.
@@ -303,6 +304,10 @@ class ReferenceJob:
     exposure: float
     denoise: bool = True
     threads: int = 0  # 0: Blender's choice (all cores)
+    # Cycles' light path length: None its default (12, every bounce), 0 the direct light
+    # alone (a camera ray's hit lit by the lamps, the sun and the sky, with shadows), N up to
+    # N bounces. ``--reference-bounces``: full minus direct is Cycles' indirect light.
+    max_bounces: int | None = None
     arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     texture_images: list[np.ndarray] = field(default_factory=list, repr=False)
 
@@ -310,6 +315,8 @@ class ReferenceJob:
         d = asdict(self)
         d.pop("arrays")
         d.pop("texture_images")
+        if d["max_bounces"] is None:
+            d.pop("max_bounces")  # the full light path: the digest as before the option
         return d
 
     def digest(self, version: str | None) -> str:
@@ -359,8 +366,10 @@ def export(
     view: Viewpoint,
     size: tuple[int, int],
     samples: int,
+    max_bounces: int | None = None,
 ) -> ReferenceJob:
-    """The job for our left eye at ``size`` (one eye's width x height) seeing ``scene``."""
+    """The job for our left eye at ``size`` (one eye's width x height) seeing ``scene``;
+    ``max_bounces`` limits Cycles' light paths (0: the direct light alone)."""
     arrays = merged_arrays(scene)
     sky = sky_for(scene, settings)
     if sky is not None:
@@ -376,6 +385,7 @@ def export(
         exposure=fixed_exposure(settings),
         arrays=arrays,
         texture_images=[t.rgba for t in scene.textures],
+        max_bounces=None if max_bounces is None else max(int(max_bounces), 0),
     )
 
 
@@ -659,6 +669,7 @@ def compare(
     features: list[str] | None = None,
     cache: Path | None = None,
     note: Callable[[str], None] | None = None,
+    max_bounces: int | None = None,
 ) -> Comparison:
     """FLIP of our frame against the Cycles reference, with the settings as given and with
     each feature on and off."""
@@ -669,7 +680,7 @@ def compare(
             f"unknown feature {', '.join(sorted(unknown))} "
             f"(known: {', '.join(f.name for f in FEATURES)})"
         )
-    ref = render(export(scene, settings, view, size, samples), cache, note)
+    ref = render(export(scene, settings, view, size, samples, max_bounces), cache, note)
     variants: dict[str, Settings] = {"defaults": settings}
     rows = []
     for f in chosen:
@@ -686,7 +697,7 @@ def compare(
     references = {ref.digest: ref.radiance}
 
     def reference_for(overrides: dict[str, Any]) -> np.ndarray:
-        job = export(scene, with_overrides(settings, overrides), view, size, samples)
+        job = export(scene, with_overrides(settings, overrides), view, size, samples, max_bounces)
         digest = job.digest(bpy_version())
         if digest not in references:
             references[digest] = render(job, cache, note).radiance
@@ -738,6 +749,12 @@ def add_parsers(sub: Any, common: Callable[..., None]) -> None:
         p.add_argument("--size", default="640x720", help="one eye, WxH (the left eye)")
         p.add_argument("--samples", type=int, default=64, help="Cycles samples per pixel")
         p.add_argument("--out", default=None, help="PNG (reference) or JSON (compare) to write")
+        p.add_argument(
+            "--reference-bounces",
+            type=int,
+            default=None,
+            help="Cycles' bounces (default: all; 0: the direct light alone)",
+        )
         if name == "reference-compare":
             p.add_argument(
                 "--features",
@@ -762,7 +779,10 @@ def run_command(args: Any, settings: Settings) -> int:
 
     try:
         if args.command == "reference":
-            ref = render(export(scene, settings, view, size, args.samples), note=note)
+            ref = render(
+                export(scene, settings, view, size, args.samples, args.reference_bounces),
+                note=note,
+            )
             if args.out:
                 shown = present(ref.radiance, fixed_exposure(settings), tone_curve(settings))
                 atomic_write_png(args.out, shown)
@@ -772,7 +792,15 @@ def run_command(args: Any, settings: Settings) -> int:
             return 0
         features = args.features.split(",") if args.features else None
         result = compare(
-            Path(args.scene).stem, scene, settings, view, size, args.samples, features, note=note
+            Path(args.scene).stem,
+            scene,
+            settings,
+            view,
+            size,
+            args.samples,
+            features,
+            note=note,
+            max_bounces=args.reference_bounces,
         )
     except CyclesError as exc:
         print(f"vrpreview: error: {exc}", file=sys.stderr)

@@ -31,12 +31,15 @@ void use_tile_of(ivec2 pixel) {
 #include "shadow_mask.glsl"
 uniform float u_light_scale;  // brightness setting times exposure-independent scale
 uniform float u_ambient;
+uniform vec3 u_ambient_gradient;  // the even light of normal N: max(u_ambient + g . N, 0)
+uniform float u_occluder_return;  // what hides a crease's light sends back (< 0: unknown)
 #include "sky.glsl"
 
 // Smooth window: 1 near the light, exactly 0 at the range, so culling by range is exact.
 float range_window(float d2, float range) {
     float x = d2 / (range * range);
-    float w = clamp(1.0 - x * x, 0.0, 1.0);
+    float x2 = x * x;
+    float w = clamp(1.0 - x2 * x2, 0.0, 1.0);
     return w * w;
 }
 
@@ -46,15 +49,50 @@ float lamp_falloff(float d2, float range) {
     return range_window(d2, range) / max(d2, LIGHT_MIN_DIST2);
 }
 
+// The share of an even surrounding light that a surface reflects by its specular lobe:
+// the split-sum environment BRDF in Karis's analytic fit (Unreal Engine 4 on mobile, 2014),
+// F0 * x + y for roughness and N.V.
+vec2 env_brdf(float roughness, float ndv) {
+    const vec4 c0 = vec4(-1.0, -0.0275, -0.572, 0.022);
+    const vec4 c1 = vec4(1.0, 0.0425, 1.04, -0.04);
+    vec4 r = roughness * c0 + c1;
+    float a004 = min(r.x * r.x, exp2(-9.28 * ndv)) * r.x + r.y;
+    return vec2(-1.04, 1.04) * a004 + r.zw;
+}
+
+// Occlusion of the even light, with what the occluders send back: the part of the hemisphere
+// a crease hides is a nearby surface, itself lit. The estimate knows how bright the room's
+// surfaces are against the even light they would hide (u_occluder_return: their exitance
+// rho (E_direct + E_indirect) over E_indirect; in a lamp-lit room about 1, so a crease is
+// barely darker, as a path tracer shows it): visibility + (1 - visibility) x that, at most 1.
+// Without it (the fixed ambient), the occluders are taken to be lit by the even light alone
+// and as pale as the surface: Jimenez et al. 2016 ("Practical real-time strategies for
+// accurate indirect occlusion"), the cubic fit of that multi-bounce occlusion.
+vec3 occluded_share(float visibility, vec3 albedo) {
+    float x = visibility;
+    if (u_occluder_return >= 0.0) {
+        return vec3(x + (1.0 - x) * min(u_occluder_return, 1.0));
+    }
+    vec3 a = 2.0404 * albedo - 0.3324;
+    vec3 b = -4.7951 * albedo + 0.6417;
+    vec3 c = 2.7552 * albedo + 0.6903;
+    return clamp(((x * a + b) * x + c) * x, vec3(x), vec3(1.0));
+}
+
 vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic) {
     vec3 diffuse_color = albedo * (1.0 - metallic);
     vec3 spec_color = mix(vec3(0.04), albedo, metallic);
     float shininess = exp2(10.0 * (1.0 - roughness) + 1.0);
     float spec_norm = (shininess + 8.0) / (8.0 * PI);
     // The ambient terms (even light and the sky through the windows), darkened in creases
-    // by the material's occlusion map and the ambient occlusion.
-    float occlusion = material_occlusion() * ambient_occlusion();
-    vec3 sum = (u_ambient * albedo + sky_ambient(N, albedo)) * occlusion;
+    // by the material's occlusion map and the ambient occlusion (with their bounce). The even
+    // light is reflected as the lamps' is: diffusely by the diffuse colour and by the
+    // specular lobe (a varnished floor mirrors the lit walls a little).
+    vec3 occlusion = occluded_share(material_occlusion() * ambient_occlusion(), albedo);
+    vec2 env = env_brdf(roughness, clamp(dot(N, V), 0.0, 1.0));
+    vec3 even = diffuse_color + spec_color * env.x + env.y;
+    float level = max(u_ambient + dot(u_ambient_gradient, N), 0.0);
+    vec3 sum = (level * even + sky_ambient(N, albedo)) * occlusion;
 #ifdef TILED_LIGHTS
     uint tile_count = texelFetch(u_tile_counts, g_tile, 0).r;
     bool every = tile_count == ALL_LIGHTS;
