@@ -427,13 +427,17 @@ class Renderer:
             self.settings = user
         wall_ms = (time.perf_counter() - start) * 1000.0
         pass_ms = self.pass_ms()
-        self.governor.observe(
-            user,
-            pass_ms,
-            max(wall_ms, sum(pass_ms.values())),
-            self.display_hz,
-            refining=bool(getattr(frame, "refining", False)),
-        )
+        try:
+            self.governor.observe(
+                user,
+                pass_ms,
+                max(wall_ms, sum(pass_ms.values())),
+                self.display_hz,
+                refining=bool(getattr(frame, "refining", False)),
+            )
+        except Exception as exc:  # noqa: BLE001 - a broken step: the user's settings, drawn on
+            self._log_once("governor", exc)
+            self.governor = Governor()  # the next frame at the user's own settings
 
     def _render(
         self,

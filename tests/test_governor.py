@@ -323,6 +323,31 @@ def test_object_ids_map_to_window_pixels_at_a_reduced_scale(host):
     assert {0, 1} <= set(np.unique(ids[0]).tolist())
 
 
+def test_a_failing_governor_leaves_the_users_settings_and_the_picture(caplog):
+    s = Settings()
+    s.set("render.shadows", "off")
+    s.set("render.target_fps", "240")
+    with OffscreenHost(W, H, s) as h:
+        h.set_scene(edge_scene())
+        h.set_text_image(None)
+        for _ in range(6):
+            h.draw(frame_of(h))
+        assert h.renderer.governor.overrides  # 4 ms a frame is too little: it lowered
+
+        def broken(*args, **kwargs):
+            raise KeyError("a step the model lost")
+
+        h.renderer.governor.observe = broken  # type: ignore[method-assign]
+        h.draw(frame_of(h))
+        img = h.draw(frame_of(h))  # drawn, at the user's own settings
+        assert h.renderer.governor.overrides == {}
+        assert any("governor" in e for e in h.renderer.errors)
+        assert img.max() > 0
+    for r in caplog.records:
+        if "governor" in r.getMessage():
+            r.expected = True  # this test's own error
+
+
 def test_auto_headless_is_fixed_settings_and_deterministic():
     s = Settings()
     s.set("render.shadows", "off")
