@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from app.lab import cycles_reference as cr
+from app.lab import reference_compare as rc
 from app.scene import Material, Mesh, PointLight, Scene, Viewpoint
 from app.settings import Settings
 
@@ -91,7 +92,7 @@ def red_centroid(rgb: np.ndarray) -> np.ndarray:
     # the box itself, not the red glow it casts on the floor in the path-traced picture
     # (dim enough that no filmic curve turns it orange)
     red = (f[..., 0] > 120) & (f[..., 1] < 0.45 * f[..., 0]) & (f[..., 2] < 0.45 * f[..., 0])
-    red &= cr.without_gaze_ring(SIZE)  # our orange gaze ring is no marker
+    red &= rc.without_gaze_ring(SIZE)  # our orange gaze ring is no marker
     assert red.sum() > 10, "the red marker box is not in the picture"
     ys, xs = np.nonzero(red)
     return np.array([xs.mean(), ys.mean()])
@@ -102,7 +103,7 @@ def rendered(tmp_path_factory):
     cache = tmp_path_factory.mktemp("reference-cache")
     scene, s = lit_box(), settings()
     ref = cr.render(cr.export(scene, s, VIEW, SIZE, samples=8), cache)
-    ours = cr.our_frames(scene, VIEW, SIZE, {"defaults": s})["defaults"]
+    ours = rc.our_frames(scene, VIEW, SIZE, {"defaults": s})["defaults"]
     return scene, s, ref, ours, cache
 
 
@@ -115,8 +116,8 @@ def test_reference_is_lit_and_in_our_units(rendered):
     assert ref.radiance.shape == (SIZE[1], SIZE[0], 3)
     assert ref.image(1.0).mean() > 20, "the reference is black"
     x, y = pixel_of((0.0, 0.0, 0.0), s)
-    ref_l = cr.luminance(ref.radiance[y - 1 : y + 2, x - 1 : x + 2]).mean()
-    our_l = cr.luminance(hdr[y - 1 : y + 2, x - 1 : x + 2]).mean()
+    ref_l = rc.luminance(ref.radiance[y - 1 : y + 2, x - 1 : x + 2]).mean()
+    our_l = rc.luminance(hdr[y - 1 : y + 2, x - 1 : x + 2]).mean()
     d2 = LAMP[1] ** 2
     physical = LAMP_CD / d2 / math.pi
     assert ref_l == pytest.approx(physical, rel=0.1)
@@ -140,7 +141,7 @@ def test_display_transform_is_our_present_pass(rendered):
     """present() in numpy gives the present pass's pixels for our own HDR frame (to 1 level,
     the gaze ring aside), so the reference goes through the same display transform."""
     _scene, _s, _ref, ours, _cache = rendered
-    keep = cr.without_gaze_ring(SIZE)
+    keep = rc.without_gaze_ring(SIZE)
     diff = np.abs(ours.shown(ours.hdr).astype(int) - ours.image.astype(int))
     assert diff[keep].max() <= 1
 
@@ -163,10 +164,10 @@ def test_second_request_comes_from_the_cache(rendered, monkeypatch):
 
 def test_unknown_feature_keys_are_skipped_with_a_note():
     s = Settings()
-    unknown = cr.Feature("x", "Made up", {"render.made_up": "on"}, {"render.made_up": "off"})
-    assert "unknown setting 'render.made_up'" in cr.usable(unknown, s)
-    ambient = next(f for f in cr.FEATURES if f.name == "ambient")
-    assert cr.usable(ambient, s) is None
+    unknown = rc.Feature("x", "Made up", {"render.made_up": "on"}, {"render.made_up": "off"})
+    assert "unknown setting 'render.made_up'" in rc.usable(unknown, s)
+    ambient = next(f for f in rc.FEATURES if f.name == "ambient")
+    assert rc.usable(ambient, s) is None
 
 
 def test_compare_reports_each_feature_on_and_off(rendered):
@@ -177,7 +178,7 @@ def test_compare_reports_each_feature_on_and_off(rendered):
     s = settings()
     s.set("render.ambient", 0.5)  # not exported (Cycles bounces light instead): same reference
     s.set("render.ambient_estimate", False)  # the fixed 0.5, so that "off" differs
-    result = cr.compare("lit-box", scene, s, VIEW, SIZE, 8, ["ambient", "shadows"], cache)
+    result = rc.compare("lit-box", scene, s, VIEW, SIZE, 8, ["ambient", "shadows"], cache)
     assert result.reference == str(ref.folder)
     rows = {r.name: r for r in result.features}
     ambient = rows["ambient"]
@@ -194,7 +195,7 @@ def test_compare_reports_each_feature_on_and_off(rendered):
     as_json = {r["name"]: r for r in result.to_dict()["features"]}
     assert as_json["ambient"]["helps"] is (ambient.flip_on < ambient.flip_off)
     with pytest.raises(ValueError, match="unknown feature"):
-        cr.compare("lit-box", scene, s, VIEW, SIZE, 8, ["sparkles"], cache)
+        rc.compare("lit-box", scene, s, VIEW, SIZE, 8, ["sparkles"], cache)
 
 
 def test_sky_is_seen_and_compared_against_a_daylight_reference(rendered):
@@ -207,9 +208,9 @@ def test_sky_is_seen_and_compared_against_a_daylight_reference(rendered):
     day = cr.render(cr.export(scene, s, VIEW, SIZE, samples=8), cache)
     assert day.digest != ref.digest
     top = day.radiance[:4].reshape(-1, 3).mean(axis=0)
-    assert top[2] > top[0] and 1000.0 < cr.luminance(top) < 20000.0
-    assert cr.luminance(ref.radiance[:4]).max() < 1e-3  # no sky: a black world
-    result = cr.compare("lit-box", scene, settings(), VIEW, SIZE, 8, ["sky"], cache)
+    assert top[2] > top[0] and 1000.0 < rc.luminance(top) < 20000.0
+    assert rc.luminance(ref.radiance[:4]).max() < 1e-3  # no sky: a black world
+    result = rc.compare("lit-box", scene, settings(), VIEW, SIZE, 8, ["sky"], cache)
     (row,) = result.features
     assert "reference with it on" in row.label
     assert row.flip_on is not None and row.flip_off is not None
@@ -230,7 +231,7 @@ def test_the_exported_sky_is_ours_and_its_sun_where_ours_is():
     scene.north_deg = 200.0
     img = cr.sky_image(scene, s, (256, 128))
     h, w = img.shape[:2]
-    row, col = np.unravel_index(np.argmax(cr.luminance(img[: h // 2])), (h // 2, w))
+    row, col = np.unravel_index(np.argmax(rc.luminance(img[: h // 2])), (h // 2, w))
     # Cycles: phi = pi - 2 pi u, theta = pi v_from_top (row 0 the zenith)
     phi, theta = math.pi - 2 * math.pi * (col + 0.5) / w, math.pi * (row + 0.5) / h
     seen = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi)])
@@ -254,8 +255,8 @@ def test_the_reference_sky_is_the_one_our_frame_shows(rendered):
     s.set("sky.time", "15:00")
     view = Viewpoint((0.0, 2.0, 4.0), 0.0, 20.0)  # looking above the floor's far edge
     day = cr.render(cr.export(scene, s, view, SIZE, samples=4), cache)
-    ours = cr.our_frames(scene, view, SIZE, {"day": s})["day"]
-    keep = cr.without_gaze_ring(SIZE)[:20]
+    ours = rc.our_frames(scene, view, SIZE, {"day": s})["day"]
+    keep = rc.without_gaze_ring(SIZE)[:20]
     ref_sky = day.radiance[:20][keep].mean(axis=0)
     our_sky = ours.hdr[:20][keep].mean(axis=0)
     np.testing.assert_allclose(our_sky, ref_sky, rtol=0.1)

@@ -137,9 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out-dir", default="out", help="folder for screenshots and summary.json")
     d.add_argument("--size", default="1280x720", help="whole side-by-side view, WxH")
     add_survey_parser(sub)
-    from app.lab import cycles_reference
+    from app.lab import reference_compare
 
-    cycles_reference.add_parsers(sub, _common)
+    reference_compare.add_parsers(sub, _common)
     return parser
 
 
@@ -233,9 +233,9 @@ def _run(
     if args.command == "survey":
         return run_survey(args, open_survey)
     if args.command in ("reference", "reference-compare"):
-        from app.lab import cycles_reference
+        from app.lab import reference_compare
 
-        return cycles_reference.run_command(args, settings)
+        return reference_compare.run_command(args, settings)
     if args.command == "experiments":
         from app.lab.experiments import run_all
 
