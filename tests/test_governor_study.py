@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app import governor
+from app import governor, governor_model
 from app.governor import Governor, load_error_table, measured_knobs
 from app.lab import governor_study
 from app.lab.governor_study import FULL, Matrix, error_table, run_governor_study
@@ -18,7 +18,7 @@ from tests.test_governor import run, walking
 
 
 def _prior(key: str):
-    return next(k for k in governor.PRIOR_KNOBS if k.key == key)
+    return next(k for k in governor_model.PRIOR_KNOBS if k.key == key)
 
 
 def _row(name: str, flip: float, fovea: float = 0.0, ms: float = 50.0) -> dict:
@@ -44,10 +44,10 @@ def test_the_table_counts_each_step_from_its_base_and_the_governor_takes_the_inc
     knobs = {k.key: k for k in measured_knobs(weights)}
     # 0.01, then 0.02 more; a step measured better than the one before costs the least.
     assert knobs["render.scale"].error[:4] == pytest.approx(
-        (0.01, 0.02, governor.MIN_STEP_ERROR, 0.01)
+        (0.01, 0.02, governor_model.MIN_STEP_ERROR, 0.01)
     )
     # a knob with only some steps measured keeps its priors
-    prior = {k.key: k for k in governor.PRIOR_KNOBS}
+    prior = {k.key: k for k in governor_model.PRIOR_KNOBS}
     assert knobs["cps.fovea_deg"].error == prior["cps.fovea_deg"].error
 
 
@@ -61,7 +61,7 @@ def test_a_missing_or_broken_table_keeps_the_priors(tmp_path, caplog):
     nan = tmp_path / "nan.json"
     nan.write_text(json.dumps({"knobs": {"render.scale": [{"weight": float("nan")}]}}))
     assert load_error_table(nan) == {}
-    assert measured_knobs({}) == governor.PRIOR_KNOBS
+    assert measured_knobs({}) == governor_model.PRIOR_KNOBS
 
 
 def _first_lowered(weights: dict[str, list[float]]) -> str:
@@ -74,8 +74,8 @@ def _first_lowered(weights: dict[str, list[float]]) -> str:
 
 
 def test_the_measured_errors_decide_which_knob_goes_first():
-    n_scale = len(next(k for k in governor.PRIOR_KNOBS if k.key == "render.scale").steps)
-    n_cps = len(next(k for k in governor.PRIOR_KNOBS if k.key == "cps.max_level").steps)
+    n_scale = len(next(k for k in governor_model.PRIOR_KNOBS if k.key == "render.scale").steps)
+    n_cps = len(next(k for k in governor_model.PRIOR_KNOBS if k.key == "cps.max_level").steps)
     cheap_scale = {
         "render.scale": [0.0001 * (i + 1) for i in range(n_scale)],
         "cps.max_level": [0.5 * (i + 1) for i in range(n_cps)],
@@ -90,11 +90,11 @@ def test_the_measured_errors_decide_which_knob_goes_first():
 
 def test_the_shipped_table_covers_every_knob_with_finite_errors():
     table = load_error_table()
-    keys = {k.key for k in governor.PRIOR_KNOBS}
+    keys = {k.key for k in governor_model.PRIOR_KNOBS}
     assert set(table) == keys
-    for knob in governor.KNOBS:
+    for knob in governor_model.KNOBS:
         assert len(knob.error) == len(knob.steps)
-        assert all(np.isfinite(e) and e >= governor.MIN_STEP_ERROR for e in knob.error)
+        assert all(np.isfinite(e) and e >= governor_model.MIN_STEP_ERROR for e in knob.error)
 
 
 def test_the_study_writes_the_table_the_pairs_and_marks_the_governor(tmp_path, monkeypatch):

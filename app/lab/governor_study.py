@@ -4,7 +4,7 @@ fixed presets at equal frame time.
 Two parts, both on the showroom walk and both resumable (each is a :mod:`app.lab.study`
 matrix in its own folder):
 
-1. ``errors/``: every knob step of :data:`app.governor.KNOBS` alone, over a few frames of the
+1. ``errors/``: every knob step of :data:`app.governor_model.KNOBS` alone, over a few frames of the
    walk, each against the full-quality frame. The FLIP of each step (whole frame, fovea and
    periphery) becomes ``governor_errors.json``, the table the governor reads
    (:func:`app.governor.load_error_table`; the one shipped in ``app/`` was made by this
