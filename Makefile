@@ -4,8 +4,9 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-# Qt's xcb plugin, EGL/Mesa (software OpenGL) and a virtual X server for headless GUI tests.
-APT_PKGS := libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-render-util0 \
+# Qt's xcb plugin, EGL/Mesa (software OpenGL), a virtual X server for headless GUI tests, and a
+# C++ compiler with Python's headers (meshoptimizer's binding is built at install).
+APT_PKGS := g++ python3-dev libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-render-util0 \
 	libxcb-xinerama0 libxcb-xkb1 libxcb-shape0 libxcb-randr0 libxkbcommon-x11-0 \
 	libdbus-1-3 libfontconfig1 xvfb xauth libegl1 libgl1 libgl1-mesa-dri libegl-mesa0
 

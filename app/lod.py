@@ -9,12 +9,12 @@ centroids and cut into a power of two of equal ranges, so a chunk is a compact p
 mesh. The mesh keeps its identity (index, material, object id, TCR level).
 
 Levels of detail: each chunk of a mesh of at least ``LOD_MIN_TRIANGLES`` triangles is
-simplified by quadric edge collapse (fast-simplification, Garland and Heckbert's quadrics) to
-``LOD_FRACTIONS`` of its triangles, keeping its border (no cracks between chunks drawn at
-different levels). The collapses are replayed onto the mesh's own vertices, so a simplified
-level is one more range of the same index buffer: normals, UVs, tangents and the mesh's other
-per-vertex data stay valid. Each level records its geometric error (the farthest a vertex
-moved, in metres); the renderer draws the coarsest level whose error, projected to the eye,
+simplified by meshoptimizer (edge collapse under Garland and Heckbert's quadrics, seams of UVs
+and normals collapsed together) to ``LOD_FRACTIONS`` of its triangles, keeping its border (no
+cracks between chunks drawn at different levels). A simplified level is an index buffer of the
+mesh's own vertices, one more range of the same buffer: normals, UVs, tangents and the mesh's
+other per-vertex data stay valid. Each level records its geometric error (meshoptimizer's
+absolute error, in metres); the renderer draws the coarsest level whose error, projected to the eye,
 stays within ``render.lod_bias`` pixels. Results are cached by content hash under
 ``$VRPREVIEW_CACHE/lod`` (default ``$XDG_CACHE_HOME/vrpreview/lod``, ``~/.cache/...``).
 """
@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 CHUNK_TRIANGLES = 16384  # meshes above this are split into chunks of at most this many
 LOD_MIN_TRIANGLES = 128  # smaller meshes are always drawn in full (real rooms: many small ones)
 LOD_FRACTIONS = (0.5, 0.25, 0.1, 0.03)  # the simplified levels' share of a chunk's triangles
-CACHE_VERSION = 3
+CACHE_VERSION = 4
 
 
 @dataclass
@@ -97,60 +97,45 @@ def chunk_mesh(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, 
 
 
 def simplify_chunk(
-    pos: np.ndarray,
-    tris: np.ndarray,
-    fraction: float,
-    normals: np.ndarray | None = None,
-    keep_border: bool = True,
+    pos: np.ndarray, tris: np.ndarray, fraction: float, keep_border: bool = True
 ) -> tuple[np.ndarray, float] | None:
     """``tris`` (k, 3) of the mesh's vertices ``pos`` simplified to about ``fraction`` of its
-    triangles, as triangles of the same vertices, and its error in metres: the farthest a
-    vertex moved off its surface (along its normal) plus a quarter of its slide along it (which
-    shifts outlines less); None when it cannot be (too few triangles, broken positions, no
-    reduction). ``keep_border``: the chunk's open edges stay (where neighbouring chunks meet
-    it); a whole mesh lets them move too (its error counts how far)."""
-    import fast_simplification
+    triangles, as triangles of the same vertices, and its error in metres (meshoptimizer's
+    absolute error: how far the simplified surface strays from the full one); None when it
+    cannot be (too few triangles, broken positions, no real reduction). ``keep_border``: the
+    chunk's open edges stay (where neighbouring chunks meet it); a whole mesh lets them move
+    too (its error counts how far). Vertices that share a position (seams of UVs or normals)
+    are collapsed together, so a seam does not stop the simplification."""
+    import meshoptimizer
 
     used, local = np.unique(tris, return_inverse=True)
-    local = local.reshape(-1, 3)
     points = pos[used]
     if len(tris) < 8 or not np.isfinite(points).all():
         return None
-    _, _, collapses = fast_simplification.simplify(
-        points,
-        local.astype(np.int32),
-        target_reduction=1.0 - fraction,
-        preserve_border=keep_border,  # the chunk's edge stays where its neighbours meet it
-        return_collapses=True,
+    lo = points.min(axis=0)
+    relative = np.ascontiguousarray(points - lo, np.float32)  # float32 stays precise near 0
+    source = np.ascontiguousarray(local.reshape(-1), np.uint32)
+    out = np.zeros_like(source)
+    error = np.zeros(1, np.float32)
+    options = meshoptimizer.SIMPLIFY_ERROR_ABSOLUTE
+    if keep_border:
+        options |= meshoptimizer.SIMPLIFY_LOCK_BORDER
+    reach = float(np.linalg.norm(relative.max(axis=0))) + 1.0  # no error limit: the count rules
+    count = meshoptimizer.simplify(
+        out,
+        source,
+        relative,
+        target_index_count=max(3, int(source.size * fraction) // 3 * 3),
+        target_error=reach,
+        options=options,
+        result_error=error,
     )
-    parent = np.arange(len(points))
-    for i0, i1 in np.asarray(collapses, np.int64).reshape(-1, 2):
-        parent[i1] = i0
-    while True:  # follow chains of collapses to the vertex that survived
-        nxt = parent[parent]
-        if np.array_equal(nxt, parent):
-            break
-        parent = nxt
-    out = parent[local]
-    keep = (out[:, 0] != out[:, 1]) & (out[:, 1] != out[:, 2]) & (out[:, 0] != out[:, 2])
-    out = out[keep]
-    _, first = np.unique(np.sort(out, axis=1), axis=0, return_index=True)
-    out = out[np.sort(first)]
-    if len(out) == 0 or len(out) > 0.9 * len(tris):
+    if count == 0 or count > 0.9 * source.size:
         return None
-    offset = points[parent] - points
-    if normals is not None and np.isfinite(normals[used]).all():
-        across = np.abs(np.sum(offset * normals[used], axis=1))
-        along = np.linalg.norm(offset, axis=1)
-        moved = float((across + 0.25 * along).max())
-    else:
-        moved = float(np.linalg.norm(offset, axis=1).max())
-    return used[out], moved
+    return used[out[:count].reshape(-1, 3).astype(np.int64)], float(error[0])
 
 
-def build_lod(
-    positions: np.ndarray, indices: np.ndarray, normals: np.ndarray | None = None
-) -> tuple[np.ndarray, Chunks | None]:
+def build_lod(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, Chunks | None]:
     """The mesh's index buffer (chunk-ordered full level, then the simplified levels) as
     (K, 3) triangles, and its chunks with every level (only level 0 for a small mesh)."""
     tris, chunks = chunk_mesh(positions, indices)
@@ -168,7 +153,7 @@ def build_lod(
     for c in range(n):
         src = tris[chunks.first[0, c] // 3 : (chunks.first[0, c] + chunks.count[0, c]) // 3]
         for level, fraction in enumerate(LOD_FRACTIONS, start=1):
-            result = simplify_chunk(pos, src, fraction, normals, keep_border=n > 1)
+            result = simplify_chunk(pos, src, fraction, keep_border=n > 1)
             if result is None:  # no coarser level: the previous one stands in
                 first[level, c], count[level, c] = first[level - 1, c], count[level - 1, c]
                 error[level, c] = error[level - 1, c]
@@ -190,17 +175,12 @@ def cache_dir() -> Path:
     return Path(base) / "vrpreview" / "lod"
 
 
-def content_key(
-    positions: np.ndarray, indices: np.ndarray, normals: np.ndarray | None = None
-) -> str:
-    """The cache's name for a mesh's levels: its geometry, normals (they weigh the error)
-    and the build's parameters."""
+def content_key(positions: np.ndarray, indices: np.ndarray) -> str:
+    """The cache's name for a mesh's levels: its geometry and the build's parameters."""
     h = hashlib.sha256()
     h.update(f"v{CACHE_VERSION} {CHUNK_TRIANGLES} {LOD_FRACTIONS}".encode())
     h.update(np.ascontiguousarray(positions, np.float32).tobytes())
     h.update(np.ascontiguousarray(indices, np.int64).tobytes())
-    if normals is not None:
-        h.update(np.ascontiguousarray(normals, np.float32).tobytes())
     return h.hexdigest()
 
 
@@ -213,12 +193,10 @@ class MeshLod:
     source_triangles: int  # the mesh's triangle count it was built from (a check at upload)
 
 
-def cached_lod(
-    positions: np.ndarray, indices: np.ndarray, normals: np.ndarray | None = None
-) -> tuple[MeshLod | None, bool]:
+def cached_lod(positions: np.ndarray, indices: np.ndarray) -> tuple[MeshLod | None, bool]:
     """The mesh's levels from the cache or built (and cached); True when it was a cache hit.
     None (with a warning) when the mesh cannot be simplified: it is drawn in full."""
-    key = content_key(positions, indices, normals)
+    key = content_key(positions, indices)
     path = cache_dir() / f"{key}.npz"
     n = int(np.asarray(indices).reshape(-1, 3).shape[0])
     if path.exists():
@@ -229,7 +207,7 @@ def cached_lod(
         except (OSError, ValueError, KeyError):
             log.warning("the cached levels of detail %s are damaged; building them again", path)
     try:
-        tris, chunks = build_lod(positions, indices, normals)
+        tris, chunks = build_lod(positions, indices)
     except Exception:  # noqa: BLE001 - broken geometry: drawn in full, not a failed load
         log.warning("a mesh could not be simplified; it is drawn in full detail", exc_info=True)
         return None, False
@@ -263,7 +241,7 @@ def attach_lods(meshes: list, progress: Callable[[float, str], None] | None = No
     for k, mesh in enumerate(big):
         if progress is not None:
             progress(k / max(len(big), 1), f"Simplifying distant geometry ({k + 1}/{len(big)})")
-        lod, hit = cached_lod(mesh.positions, mesh.indices, mesh.normals)
+        lod, hit = cached_lod(mesh.positions, mesh.indices)
         mesh.lod = lod
         hits += int(hit)
     return hits

@@ -149,16 +149,16 @@ def test_levels_are_coarser_far_away_and_with_a_higher_bias():
     from render.culling import lod_levels
 
     m = bumpy_floor()
-    tris, chunks = build_lod(m.positions, m.indices, m.normals)
+    tris, chunks = build_lod(m.positions, m.indices)
     assert chunks is not None and chunks.levels == 1 + len(LOD_FRACTIONS)
     counts = chunks.count[:, 0]
     assert counts[0] == m.indices.size and counts[1] < counts[0] and counts[3] < counts[1]
     assert (chunks.error[1:] > 0).all()
     # Simplified levels use the mesh's own vertices (attributes stay valid) and stay inside.
     assert tris.max() < len(m.positions)
-    near = lod_levels(chunks, np.array([0.0, 1.0, 6.0]), 360.0, 1.0)
+    near = lod_levels(chunks, np.array([0.0, 1.0, 2.5]), 360.0, 1.0)
     far = lod_levels(chunks, np.array([0.0, 1.0, 60.0]), 360.0, 1.0)
-    farther_bias = lod_levels(chunks, np.array([0.0, 1.0, 6.0]), 360.0, 8.0)
+    farther_bias = lod_levels(chunks, np.array([0.0, 1.0, 2.5]), 360.0, 8.0)
     assert near[0] < far[0] and near[0] < farther_bias[0]
     assert lod_levels(chunks, np.array([0.0, 1.0, 60.0]), 360.0, 0.0)[0] == 0
 
@@ -178,7 +178,7 @@ def test_the_cache_answers_the_second_load_and_broken_input_falls_back(tmp_path)
 def test_a_simplified_mesh_far_away_looks_like_the_full_one(host):
     m = bumpy_floor()
     m.positions[:, 2] -= 14.0  # 12-16 m away
-    m.lod, _ = cached_lod(m.positions, m.indices, m.normals)
+    m.lod, _ = cached_lod(m.positions, m.indices)
     sc = Scene(
         "bumpy",
         [m],
