@@ -96,25 +96,14 @@ def chunk_mesh(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, 
     return tris, Chunks(first, count, np.zeros(first.shape), np.array(los), np.array(his))
 
 
-def simplify_chunk(
-    pos: np.ndarray, tris: np.ndarray, fraction: float, keep_border: bool = True
-) -> tuple[np.ndarray, float] | None:
-    """``tris`` (k, 3) of the mesh's vertices ``pos`` simplified to about ``fraction`` of its
-    triangles, as triangles of the same vertices, and its error in metres (meshoptimizer's
-    absolute error: how far the simplified surface strays from the full one); None when it
-    cannot be (too few triangles, broken positions, no real reduction). ``keep_border``: the
-    chunk's open edges stay (where neighbouring chunks meet it); a whole mesh lets them move
-    too (its error counts how far). Vertices that share a position (seams of UVs or normals)
-    are collapsed together, so a seam does not stop the simplification."""
+def _meshopt(points: np.ndarray, tris: np.ndarray, fraction: float, keep_border: bool):
+    """meshoptimizer's simplification of (k, 3) ``tris`` over ``points`` towards ``fraction``
+    of them: the triangles (of the same points) and the absolute error."""
     import meshoptimizer
 
-    used, local = np.unique(tris, return_inverse=True)
-    points = pos[used]
-    if len(tris) < 8 or not np.isfinite(points).all():
-        return None
     lo = points.min(axis=0)
     relative = np.ascontiguousarray(points - lo, np.float32)  # float32 stays precise near 0
-    source = np.ascontiguousarray(local.reshape(-1), np.uint32)
+    source = np.ascontiguousarray(tris.reshape(-1), np.uint32)
     out = np.zeros_like(source)
     error = np.zeros(1, np.float32)
     options = meshoptimizer.SIMPLIFY_ERROR_ABSOLUTE
@@ -130,12 +119,88 @@ def simplify_chunk(
         options=options,
         result_error=error,
     )
-    if count == 0 or count > 0.9 * source.size:
+    return out[:count].reshape(-1, 3).astype(np.int64), float(error[0])
+
+
+def _welded(
+    points: np.ndarray,
+    tris: np.ndarray,
+    fraction: float,
+    keep_border: bool,
+    normals: np.ndarray | None,
+) -> tuple[np.ndarray, float] | None:
+    """The simplification of a mesh whose triangles do not share vertices (flat-shaded
+    exports: every corner its own vertex, which meshoptimizer must keep): simplified with the
+    corners welded by position, each corner of a kept triangle then given back the vertex of
+    that position whose normal is closest to the triangle's (its facet's own, on a flat-shaded
+    mesh). None where welding joins nothing."""
+    unique, weld = np.unique(points, axis=0, return_inverse=True)
+    weld = weld.reshape(-1)
+    if len(unique) > 0.75 * len(points):
         return None
-    return used[out[:count].reshape(-1, 3).astype(np.int64)], float(error[0])
+    wt = weld[tris]
+    keep = (wt[:, 0] != wt[:, 1]) & (wt[:, 1] != wt[:, 2]) & (wt[:, 0] != wt[:, 2])
+    out, error = _meshopt(unique, wt[keep], fraction, keep_border)
+    if len(out) == 0:
+        return None
+    # Each welded position's vertices, in runs of the sorted order.
+    order = np.argsort(weld, kind="stable")
+    start = np.searchsorted(weld[order], np.arange(len(unique)))
+    count = np.bincount(weld, minlength=len(unique))
+    corner = out.reshape(-1)
+    best = order[start[corner]]
+    if normals is not None and np.isfinite(normals).all():
+        p = unique[out]
+        face = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        face = np.repeat(
+            face / np.maximum(np.linalg.norm(face, axis=1, keepdims=True), 1e-30), 3, 0
+        )
+        score = np.sum(normals[best] * face, axis=1)
+        for k in range(1, int(count[corner].max())):
+            has = count[corner] > k
+            cand = order[start[corner[has]] + k]
+            s = np.sum(normals[cand] * face[has], axis=1)
+            better = s > score[has]
+            idx = np.flatnonzero(has)[better]
+            best[idx], score[idx] = cand[better], s[better]
+    return best.reshape(-1, 3), error
 
 
-def build_lod(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, Chunks | None]:
+def simplify_chunk(
+    pos: np.ndarray,
+    tris: np.ndarray,
+    fraction: float,
+    normals: np.ndarray | None = None,
+    keep_border: bool = True,
+) -> tuple[np.ndarray, float] | None:
+    """``tris`` (k, 3) of the mesh's vertices ``pos`` simplified to about ``fraction`` of its
+    triangles, as triangles of the same vertices, and its error in metres (meshoptimizer's
+    absolute error: how far the simplified surface strays from the full one); None when it
+    cannot be (too few triangles, broken positions, no real reduction). ``keep_border``: the
+    chunk's open edges stay (where neighbouring chunks meet it); a whole mesh lets them move
+    too (its error counts how far). Vertices that share a position along a seam of UVs or
+    normals are collapsed together; a mesh whose triangles share no vertices at all is
+    simplified welded (:func:`_welded`, ``normals`` choose each corner's vertex)."""
+    used, local = np.unique(tris, return_inverse=True)
+    local = local.reshape(-1, 3)
+    points = pos[used]
+    if len(tris) < 8 or not np.isfinite(points).all():
+        return None
+    target = max(1, int(len(tris) * fraction))
+    out, error = _meshopt(points, local, fraction, keep_border)
+    if len(out) > 1.5 * target:  # stuck: corners that share a position but not a vertex
+        own = None if normals is None else np.asarray(normals, np.float64)[used]
+        welded = _welded(points, local, fraction, keep_border, own)
+        if welded is not None and len(welded[0]) < len(out):
+            out, error = welded
+    if len(out) == 0 or len(out) > 0.9 * len(tris):
+        return None
+    return used[out], error
+
+
+def build_lod(
+    positions: np.ndarray, indices: np.ndarray, normals: np.ndarray | None = None
+) -> tuple[np.ndarray, Chunks | None]:
     """The mesh's index buffer (chunk-ordered full level, then the simplified levels) as
     (K, 3) triangles, and its chunks with every level (only level 0 for a small mesh)."""
     tris, chunks = chunk_mesh(positions, indices)
@@ -153,7 +218,7 @@ def build_lod(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, C
     for c in range(n):
         src = tris[chunks.first[0, c] // 3 : (chunks.first[0, c] + chunks.count[0, c]) // 3]
         for level, fraction in enumerate(LOD_FRACTIONS, start=1):
-            result = simplify_chunk(pos, src, fraction, keep_border=n > 1)
+            result = simplify_chunk(pos, src, fraction, normals, keep_border=n > 1)
             if result is None:  # no coarser level: the previous one stands in
                 first[level, c], count[level, c] = first[level - 1, c], count[level - 1, c]
                 error[level, c] = error[level - 1, c]
@@ -175,12 +240,17 @@ def cache_dir() -> Path:
     return Path(base) / "vrpreview" / "lod"
 
 
-def content_key(positions: np.ndarray, indices: np.ndarray) -> str:
-    """The cache's name for a mesh's levels: its geometry and the build's parameters."""
+def content_key(
+    positions: np.ndarray, indices: np.ndarray, normals: np.ndarray | None = None
+) -> str:
+    """The cache's name for a mesh's levels: its geometry, normals (they choose the corners
+    of a welded simplification) and the build's parameters."""
     h = hashlib.sha256()
     h.update(f"v{CACHE_VERSION} {CHUNK_TRIANGLES} {LOD_FRACTIONS}".encode())
     h.update(np.ascontiguousarray(positions, np.float32).tobytes())
     h.update(np.ascontiguousarray(indices, np.int64).tobytes())
+    if normals is not None:
+        h.update(np.ascontiguousarray(normals, np.float32).tobytes())
     return h.hexdigest()
 
 
@@ -193,10 +263,12 @@ class MeshLod:
     source_triangles: int  # the mesh's triangle count it was built from (a check at upload)
 
 
-def cached_lod(positions: np.ndarray, indices: np.ndarray) -> tuple[MeshLod | None, bool]:
+def cached_lod(
+    positions: np.ndarray, indices: np.ndarray, normals: np.ndarray | None = None
+) -> tuple[MeshLod | None, bool]:
     """The mesh's levels from the cache or built (and cached); True when it was a cache hit.
     None (with a warning) when the mesh cannot be simplified: it is drawn in full."""
-    key = content_key(positions, indices)
+    key = content_key(positions, indices, normals)
     path = cache_dir() / f"{key}.npz"
     n = int(np.asarray(indices).reshape(-1, 3).shape[0])
     if path.exists():
@@ -207,7 +279,7 @@ def cached_lod(positions: np.ndarray, indices: np.ndarray) -> tuple[MeshLod | No
         except (OSError, ValueError, KeyError):
             log.warning("the cached levels of detail %s are damaged; building them again", path)
     try:
-        tris, chunks = build_lod(positions, indices)
+        tris, chunks = build_lod(positions, indices, normals)
     except Exception:  # noqa: BLE001 - broken geometry: drawn in full, not a failed load
         log.warning("a mesh could not be simplified; it is drawn in full detail", exc_info=True)
         return None, False
@@ -241,7 +313,7 @@ def attach_lods(meshes: list, progress: Callable[[float, str], None] | None = No
     for k, mesh in enumerate(big):
         if progress is not None:
             progress(k / max(len(big), 1), f"Simplifying distant geometry ({k + 1}/{len(big)})")
-        lod, hit = cached_lod(mesh.positions, mesh.indices)
+        lod, hit = cached_lod(mesh.positions, mesh.indices, mesh.normals)
         mesh.lod = lod
         hits += int(hit)
     return hits

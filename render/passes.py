@@ -558,9 +558,11 @@ class BlendPass(RenderPass):
 
 def back_to_front(scene, indices: list[int], eye: np.ndarray) -> list[int]:
     """Mesh indices ordered farthest first (by bounding-box centre); ties by index."""
-    position = np.asarray(eye, np.float64)
-    far = [-float(np.sum((np.asarray(scene.meshes[i].centre) - position) ** 2)) for i in indices]
-    return [i for _, i in sorted(zip(far, indices))]
+    if not indices:
+        return []
+    centres = np.array([scene.meshes[i].centre for i in indices], np.float64)
+    far = -np.sum((centres - np.asarray(eye, np.float64)) ** 2, axis=1)
+    return [indices[k] for k in np.lexsort((np.asarray(indices), far))]
 
 
 class ObjectIdPass(RenderPass):

@@ -149,7 +149,7 @@ def test_levels_are_coarser_far_away_and_with_a_higher_bias():
     from render.culling import lod_levels
 
     m = bumpy_floor()
-    tris, chunks = build_lod(m.positions, m.indices)
+    tris, chunks = build_lod(m.positions, m.indices, m.normals)
     assert chunks is not None and chunks.levels == 1 + len(LOD_FRACTIONS)
     counts = chunks.count[:, 0]
     assert counts[0] == m.indices.size and counts[1] < counts[0] and counts[3] < counts[1]
@@ -178,7 +178,7 @@ def test_the_cache_answers_the_second_load_and_broken_input_falls_back(tmp_path)
 def test_a_simplified_mesh_far_away_looks_like_the_full_one(host):
     m = bumpy_floor()
     m.positions[:, 2] -= 14.0  # 12-16 m away
-    m.lod, _ = cached_lod(m.positions, m.indices)
+    m.lod, _ = cached_lod(m.positions, m.indices, m.normals)
     sc = Scene(
         "bumpy",
         [m],
@@ -198,6 +198,88 @@ def test_a_simplified_mesh_far_away_looks_like_the_full_one(host):
     tris_coarse = host.renderer.triangles_drawn()
     host.settings.render.lod_bias = 0.0
     assert all(c < f for c, f in zip(tris_coarse, tris_full)), (tris_coarse, tris_full)
+    assert full[..., :3].std() > 3  # the floor is in view
+    assert np.abs(full - coarse).mean() < 2.0
+
+
+def flat_shaded(m: Mesh) -> Mesh:
+    """The mesh as a flat-shaded export writes it: every triangle its own three vertices,
+    with its facet's normal (no two triangles share a vertex)."""
+    tris = m.indices.reshape(-1, 3)
+    pos = m.positions[tris].reshape(-1, 3)
+    p = pos.reshape(-1, 3, 3)
+    face = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    face /= np.linalg.norm(face, axis=1, keepdims=True)
+    normals = np.repeat(face, 3, axis=0).astype(np.float32)
+    uvs = m.uvs[tris].reshape(-1, 2)
+    indices = np.arange(len(pos), dtype=np.uint32).reshape(-1, 3)
+    return Mesh(m.name + "-flat", pos.astype(np.float32), normals, uvs, indices, m.material)
+
+
+def tiled_cube(n: int = 12) -> Mesh:
+    """A 1 m cube, each face an n x n grid of quads (a mesh to simplify with sharp edges)."""
+    t = np.linspace(-0.5, 0.5, n + 1)
+    gu, gv = (a.ravel() for a in np.meshgrid(t, t))
+    positions, indices = [], []
+    for axis in range(3):
+        for side in (-0.5, 0.5):
+            p = np.zeros((len(gu), 3))
+            p[:, axis] = side
+            p[:, (axis + 1) % 3], p[:, (axis + 2) % 3] = gu, gv
+            i = np.arange(n)
+            a = (i[:, None] * (n + 1) + i[None, :]).ravel()
+            quads = np.r_[np.c_[a, a + 1, a + n + 1], np.c_[a + 1, a + n + 2, a + n + 1]]
+            if side < 0:
+                quads = quads[:, ::-1]
+            indices.append(quads + sum(len(q) for q in positions))
+            positions.append(p)
+    pos = np.concatenate(positions).astype(np.float32)
+    normals = np.zeros_like(pos)  # replaced by flat_shaded's facet normals
+    uvs = np.zeros((len(pos), 2), np.float32)
+    return Mesh("cube", pos, normals, uvs, np.concatenate(indices).astype(np.uint32), 0)
+
+
+@pytest.mark.parametrize("shape", [bumpy_floor, tiled_cube])
+def test_a_flat_shaded_mesh_is_simplified_and_keeps_its_facets_normals(shape):
+    m = flat_shaded(shape())
+    tris, chunks = build_lod(m.positions, m.indices, m.normals)
+    assert chunks is not None
+    full = chunks.count[0, 0] // 3
+    coarsest = chunks.count[-1, 0] // 3
+    assert coarsest <= 2 * LOD_FRACTIONS[-1] * full, (coarsest, full)
+    assert 0.0 <= chunks.error[-1, 0] < 0.05  # within the bumps
+    level = tris[chunks.first[-1, 0] // 3 :][:coarsest]
+    p = m.positions[level].astype(np.float64)
+    face = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    face /= np.linalg.norm(face, axis=1, keepdims=True)
+    # Each corner's vertex is one of that position's, the one facing as the new facet does.
+    alignment = np.einsum("kj,kcj->kc", face, m.normals[level].astype(np.float64))
+    assert np.median(alignment) > 0.99 and alignment.min() > 0.9
+
+
+def test_a_simplified_flat_shaded_mesh_far_away_looks_like_the_full_one(host):
+    m = flat_shaded(bumpy_floor())
+    m.positions[:, 2] -= 14.0  # 12-16 m away
+    m.lod, _ = cached_lod(m.positions, m.indices, m.normals)
+    sc = Scene(
+        "bumpy-flat",
+        [m],
+        [Material("grey", (0.8, 0.8, 0.8, 1.0), None, roughness=0.5)],
+        [],
+        [Light((0.0, 3.0, -12.0), intensity=40.0, range_m=30.0)],
+        Viewpoint((0.0, 1.6, 0.0), pitch_deg=-8.0),
+        floor_y=0.0,
+    )
+    host.set_scene(sc)
+    fi = frame(host, sc)
+    host.settings.render.lod_bias = 0.0
+    full = host.draw(fi).astype(int)
+    tris_full = host.renderer.triangles_drawn()
+    host.settings.render.lod_bias = 4.0
+    coarse = host.draw(fi).astype(int)
+    tris_coarse = host.renderer.triangles_drawn()
+    host.settings.render.lod_bias = 0.0
+    assert all(2 * c < f for c, f in zip(tris_coarse, tris_full)), (tris_coarse, tris_full)
     assert full[..., :3].std() > 3  # the floor is in view
     assert np.abs(full - coarse).mean() < 2.0
 

@@ -60,7 +60,7 @@ def room() -> Scene:
         floor_y=0.0,
     ).sanitized()
     floor = scene.meshes[0]
-    floor.lod, _ = cached_lod(floor.positions, floor.indices)
+    floor.lod, _ = cached_lod(floor.positions, floor.indices, floor.normals)
     return scene
 
 

@@ -161,12 +161,15 @@ def check_bundle(bundle: Path, tmp_path: Path) -> None:
     assert (qt_plugins / "platforms" / "libqxcb.so").is_file()  # the window on X11
     shaders = list((bundle / "_internal" / "render" / "shaders").glob("*.glsl"))
     assert len(shaders) == len(tree_files("*.glsl"))
+    # meshoptimizer's binding loads its library with ctypes from its own folder (app/lod.py)
+    assert list((bundle / "_internal" / "meshoptimizer").glob("_meshoptimizer*.so"))
 
     # As root (CI, this machine) every Python install and the checkout are hidden from it.
     picture, _seconds, output = dist_check.render_outside(
         str(bundle / "vrpreview"), SIZE, tmp_path / "run", isolate=dist_check.can_isolate()
     )
     assert "embree unavailable" not in output  # the fast ray caster travelled with it
+    assert "could not be simplified" not in output  # and meshoptimizer's library (ctypes)
     assert picture.shape == (64, 64, 3) and picture.std() > 10
     in_tree = dist_check.render_in_tree(SIZE)
     assert np.abs(picture.astype(int) - in_tree.astype(int)).mean() < dist_check.MAX_MEAN_DIFF
