@@ -28,6 +28,7 @@ from app.governor_model import (
     ERROR_TABLE,
     FOVEA_WEIGHT,
     KNOBS,
+    LOD_ERRORS,
     LOD_SHARE,
     PRIOR_KNOBS,
     Knob,
@@ -44,6 +45,7 @@ __all__ = [
     "ERROR_TABLE",
     "FOVEA_WEIGHT",
     "KNOBS",
+    "LOD_ERRORS",
     "LOD_SHARE",
     "PRIOR_KNOBS",
     "Decision",
@@ -156,6 +158,9 @@ class Governor:
     category_ms: dict[str, float] = field(default_factory=dict)  # measured, steady (EMA)
     _pending: _StepTrial | None = None  # a one-knob change being measured
     _user_values: dict[str, Any] | None = None  # the user's knob values last frame
+    # The renderer's count of the triangles in view per allowed error (LOD_ERRORS): what
+    # each level-of-detail step draws in this room (None: the LOD_SHARE priors).
+    lod_triangles: dict[float, int] | None = None
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
@@ -213,7 +218,7 @@ class Governor:
     def _factors(self, user: Settings, position: dict[str, int]) -> dict[str, float]:
         """The model's factors at ``position`` times what the timers taught of each knob
         step (:meth:`_learn_step`)."""
-        f = cost_factors(self._values(user, position))
+        f = cost_factors(self._values(user, position), self.lod_triangles)
         for key, i in position.items():
             for c, scale in self.step_scale.get((key, i), {}).items():
                 f[c] *= scale
@@ -235,6 +240,7 @@ class Governor:
         """Another room: what was learnt of the costs is forgotten (the walking state
         stays: a heavier room lowers more from where it is)."""
         self.base_ms.clear()
+        self.lod_triangles = None
         self.overhead_ms = None
         self.ema_ms = None
         self._forget_steps()
@@ -281,10 +287,14 @@ class Governor:
         frame_ms: float,
         display_hz: float | None = None,
         refining: bool = False,
+        lod_triangles: dict[float, int] | None = None,
     ) -> dict[str, Any]:
         """Learn from the frame just drawn and choose the next frame's overrides (keys to
-        values, applied over a copy of the user's settings)."""
+        values, applied over a copy of the user's settings); ``lod_triangles``: a new count
+        of the triangles in view per allowed error (see :attr:`lod_triangles`)."""
         self.frames += 1
+        if lod_triangles:
+            self.lod_triangles = dict(lod_triangles)
         self._steps = None  # the user may have changed a setting since the last frame
         self._knobs_all(user)  # the user's knob values, worked out once for this frame
         assert self._steps is not None

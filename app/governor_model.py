@@ -65,9 +65,29 @@ CATEGORY_PRIORS = {
     "shading": ("cps_shading", 1.0),
     "cps": ("shading", 0.15),  # optimistic: CPS is tried, measured, and given back if it costs
 }
-#: The share of the geometry pass that a simplified level keeps, per render.lod_bias step
-#: (the interiors at 2x640x720: 0.7, 0.55, 0.45 of the pass; the triangles drop further).
+#: The share of the geometry pass that a simplified level keeps, per render.lod_bias step,
+#: where the renderer has not said how many triangles each level draws.
 LOD_SHARE = {0: 1.0, 2: 0.7, 4: 0.55, 8: 0.45}
+#: The allowed errors (pixels of the view, before the render scale) at which the renderer
+#: counts the triangles in view (``Governor.lod_triangles``): a step's render.lod_bias b at
+#: render scale s allows b / s of them.
+LOD_ERRORS = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
+#: The part of the geometry pass that follows the triangles drawn, where they are counted
+#: (the rest follows the pixels). Real rooms at 2x640x720 on llvmpipe: the bathroom 0.72,
+#: the staircase 0.51 of the pass at full quality (367k and 241k triangles).
+VERTEX_SHARE = 0.6
+
+
+def triangle_share(triangles: dict[float, int], lod: float, scale: float) -> float:
+    """The triangles drawn at ``render.lod_bias`` ``lod`` and render scale ``scale`` over
+    those of the full level, from the renderer's count per allowed error (the nearest
+    counted error at or below ``lod / scale``: never fewer triangles than will be drawn)."""
+    full = triangles.get(0.0, 0)
+    if full <= 0:
+        return 1.0
+    allowed = lod / max(scale, 1e-3) if lod > 0 else 0.0
+    counted = max((e for e in triangles if e <= allowed + 1e-9), default=0.0)
+    return min(1.0, triangles[counted] / full)
 
 
 def category(pass_name: str) -> str:
@@ -223,10 +243,13 @@ def measured_knobs(
 KNOBS: tuple[Knob, ...] = measured_knobs(load_error_table())
 
 
-def cost_factors(values: dict[str, Any]) -> dict[str, float]:
+def cost_factors(
+    values: dict[str, Any], triangles: dict[float, int] | None = None
+) -> dict[str, float]:
     """Each category's cost relative to full quality for these knob values (the model's
     shape; its scale is learnt): fullscreen work follows the pixels (scale squared), the
-    geometry part its pixels and part its triangles (``LOD_SHARE``), soft shadow edges cost
+    geometry part its pixels and part its triangles (``triangles``: the renderer's count
+    per allowed error, :func:`triangle_share`; else ``LOD_SHARE``), soft shadow edges cost
     more taps in the shadow mask than hard ones, CPS's lighting lights fewer samples outside
     the fovea (0 where CPS is off, as the full-rate lighting is 0 where it is on)."""
     s = float(values.get("render.scale", 1.0))
@@ -245,7 +268,12 @@ def cost_factors(values: dict[str, Any]) -> dict[str, float]:
     updates = max(1, int(values.get("render.shadow_updates_per_frame", 2)))
     return {
         "pixels": s * s,
-        "geometry": (0.4 + 0.6 * s * s) * lod_share * 0.97**bias,
+        "geometry": (
+            (VERTEX_SHARE * triangle_share(triangles, lod, s) + (1.0 - VERTEX_SHARE) * s * s)
+            if triangles
+            else (0.4 + 0.6 * s * s) * lod_share
+        )
+        * 0.97**bias,
         "shading": 0.0 if cps_on else s * s,
         "cps_shading": s * s * periphery if cps_on else 0.0,
         "cps": 0.2 + 0.8 * s * s if cps_on else 0.0,

@@ -14,14 +14,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.camera import EyeView
 from app.lod import Chunks, chunk_mesh
 
 __all__ = [
     "Chunks",
     "chunk_mesh",
     "frustum_planes",
+    "indirect_commands",
     "lod_levels",
     "merge_chunks",
+    "triangles_by_error",
     "visible_ranges",
 ]
 
@@ -136,3 +139,38 @@ def visible_ranges(
         else:
             ranges.append((first, count))
     return out
+
+
+def triangles_by_error(
+    chunks: Chunks, eye: EyeView, errors: tuple[float, ...], keep: np.ndarray | None = None
+) -> dict[float, int]:
+    """Per allowed error (pixels of ``eye``'s size, as ``render.lod_bias``), the triangles
+    the eye would draw: its visible chunks at their levels, the small ones left out. The
+    governor prices its level-of-detail steps with it (a real room's coarse levels hold a
+    tenth of its triangles, a showroom's nearly all)."""
+    n = chunks.first.shape[1]
+    if n == 0:
+        return dict.fromkeys((float(e) for e in errors), 0)
+    visible = visible_mask(chunks, frustum_planes(eye.view_projection))
+    pixels_per_radian = float(eye.projection[1, 1]) * eye.height * 0.5
+    columns = np.arange(n)
+    out = {}
+    for e in errors:
+        levels = lod_levels(chunks, eye.position, pixels_per_radian, float(e), keep)
+        drawn = visible & (levels != LEFT_OUT)
+        out[float(e)] = int(chunks.count[np.maximum(levels, 0), columns][drawn].sum()) // 3
+    return out
+
+
+def indirect_commands(
+    every: dict[int, list[tuple[int, int]]],
+) -> tuple[np.ndarray, dict[int, tuple[int, int]]]:
+    """One view's ranges of every group as indirect draw commands (count, instances, first
+    index, base vertex, base instance; (K, 5) uint32), and where each group's are (first
+    command, how many)."""
+    rows: list[tuple[int, int, int, int, int]] = []
+    offsets = {}
+    for g, ranges in every.items():
+        offsets[g] = (len(rows), len(ranges))
+        rows += [(count, 1, first, 0, 0) for first, count in ranges]
+    return np.asarray(rows, np.uint32).reshape(-1, 5), offsets

@@ -53,8 +53,10 @@ from render.culling import (
     Chunks,
     chunk_mesh,
     frustum_planes,
+    indirect_commands,
     lod_levels,
     merge_chunks,
+    triangles_by_error,
     visible_ranges,
 )
 from render.texture_stream import TextureStreamer
@@ -543,14 +545,8 @@ class GpuScene:
     def _commands(
         self, every: dict[int, list[tuple[int, int]]]
     ) -> tuple[moderngl.Buffer, dict[int, tuple[int, int]]]:
-        """One view's ranges of every group as indirect draw commands (count, instances,
-        first index, base vertex, base instance) in one buffer, and where each group's are."""
-        rows: list[tuple[int, int, int, int, int]] = []
-        offsets = {}
-        for g, ranges in every.items():
-            offsets[g] = (len(rows), len(ranges))
-            rows += [(count, 1, first, 0, 0) for first, count in ranges]
-        data = np.asarray(rows, np.uint32).reshape(-1, 5)
+        """:func:`render.culling.indirect_commands` in one buffer, and where each group's are."""
+        data, offsets = indirect_commands(every)
         return self.ctx.buffer(data.tobytes()), offsets
 
     def _draw_ranges(self, vao: moderngl.VertexArray, ranges) -> int:
@@ -592,6 +588,11 @@ class GpuScene:
             self._indirect.clear()
         self._range_cache[key] = ranges
         return ranges
+
+    def triangles_by_error(self, eye: EyeView, errors: tuple[float, ...]) -> dict[float, int]:
+        """:func:`render.culling.triangles_by_error` for every mesh, seen by ``eye``."""
+        keep = self._glowing(False)[self._owner] if len(self._owner) else None
+        return triangles_by_error(self._all, eye, errors, keep)
 
     def _glowing(self, merged: bool | str) -> np.ndarray:
         """Per owner of a chunk table (a group where ``merged`` is True, else a mesh): whether

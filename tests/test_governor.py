@@ -402,3 +402,63 @@ def test_the_governors_coarse_lighting_works_without_the_users_edge_rays(host):
     assert host.settings.cps.mode == "none"
     assert sum(share[1:]) > 0.3  # most of the periphery in blocks
     host.renderer.governor.overrides = {}
+
+
+# A real room's triangles in view per allowed error (the bathroom's, counted by the renderer):
+# its simplified levels hold a tenth of them or less.
+ROOM_TRIANGLES = {0.0: 372494, 1.0: 36967, 2.0: 33854, 3.0: 20381, 4.0: 14627, 6.0: 14585}
+ROOM_TRIANGLES |= {8.0: 13974, 12.0: 13402, 16.0: 13148, 24.0: 11059}
+
+
+def test_triangle_share_reads_the_count_at_the_error_a_step_allows():
+    from app.governor_model import triangle_share
+
+    assert triangle_share(ROOM_TRIANGLES, 0.0, 0.35) == 1.0  # the full level, at any scale
+    assert triangle_share(ROOM_TRIANGLES, 2.0, 1.0) == 33854 / 372494
+    # lod_bias 2 at render scale 0.5 allows 4 pixels of the view; 0.45 allows 4.4: still 4.
+    assert triangle_share(ROOM_TRIANGLES, 2.0, 0.5) == triangle_share(ROOM_TRIANGLES, 2.0, 0.45)
+    assert triangle_share(ROOM_TRIANGLES, 2.0, 0.5) == 14627 / 372494
+    assert triangle_share({0.0: 0}, 8.0, 1.0) == 1.0  # nothing in view: no share to speak of
+    few = {e: 2968 for e in ROOM_TRIANGLES}  # the showroom: every level is the full one
+    low = {"render.lod_bias": 8, "render.scale": 1.0}
+    assert cost_factors(low, few)["geometry"] == cost_factors({}, few)["geometry"]
+    assert cost_factors(low, ROOM_TRIANGLES)["geometry"] < 0.5 * cost_factors({})["geometry"]
+
+
+def test_a_room_whose_coarse_levels_hold_a_tenth_of_it_never_restores_the_full_level():
+    """The bathroom at the floor of every knob: the full level draws ten times the triangles
+    of the coarsest. Priced by the renderer's count, giving the full level back is seen to
+    cost about what it does (the fixed shares call it under half of that): the frame rate
+    holds."""
+    from app.governor_model import VERTEX_SHARE, triangle_share
+
+    def room(values):  # the truth: the vertex part follows the triangles drawn
+        f = cost_factors(values, ROOM_TRIANGLES)
+        s = float(values.get("render.scale", 1.0))
+        share = triangle_share(ROOM_TRIANGLES, float(values.get("render.lod_bias", 0)), s)
+        f["geometry"] = 0.75 * share + 0.25 * s * s
+        return f
+
+    assert VERTEX_SHARE != 0.75  # the model's shape is not the truth's
+    user = walking("30")
+    base = {**BASE, "gbuffer": 90.0}
+
+    def walk(counted: bool) -> tuple[list[float], list[dict], float]:
+        gov, overrides = Governor(), {}
+        times, history = [], []
+        for i in range(240):
+            passes, ms = synthetic(user, overrides, 1.0, base, room)
+            times.append(ms)
+            triangles = ROOM_TRIANGLES if counted and i % 8 == 0 else None
+            overrides = gov.observe(user, passes, ms, lod_triangles=triangles)
+            history.append(dict(overrides))
+        full = {**gov.position, "render.lod_bias": 0}  # the same knobs with the full level
+        _, truth = synthetic(user, {**overrides, "render.lod_bias": 0.0}, 1.0, base, room)
+        return times, history, gov.predict(user, full) / truth
+
+    times, history, counted = walk(counted=True)
+    budget = 1000.0 / 30.0
+    assert max(times[40:]) < 1.1 * budget, max(times[40:])
+    assert all(h.get("render.lod_bias", 0) > 0 for h in history[40:])
+    _, _, fixed = walk(counted=False)
+    assert 0.65 < counted < 1.25 and fixed < 0.5, (counted, fixed)
