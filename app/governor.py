@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -80,6 +81,14 @@ MAX_STEPS_FAR, MAX_STEPS_NEAR = 6, 2
 
 #: A step back that the model predicts faster by at least this much is taken at once.
 FREE_RESTORE_MS = 0.5
+#: Frames within budget counts those up to this share over it (the benchmark's +10 %).
+WITHIN = 1.1
+#: The recent frames whose spread sets the aim (:meth:`Governor.aim_ms`): the steadiest
+#: frame rate holds its budget as is, one whose frames vary (the view, the machine's other
+#: work) aims lower so that nine frames in ten stay within it.
+SPREAD_FRAMES = 96
+SPREAD_QUANTILE = 0.9
+MAX_SPREAD = 1.5
 
 
 #: What the governor shows while the picture refines (the viewer stands still).
@@ -161,6 +170,8 @@ class Governor:
     # The renderer's count of the triangles in view per allowed error (LOD_ERRORS): what
     # each level-of-detail step draws in this room (None: the LOD_SHARE priors).
     lod_triangles: dict[float, int] | None = None
+    _recent: deque[float] = field(default_factory=lambda: deque(maxlen=SPREAD_FRAMES))
+    _local: deque[float] = field(default_factory=lambda: deque(maxlen=8))  # raw frame times
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
@@ -241,6 +252,8 @@ class Governor:
         stays: a heavier room lowers more from where it is)."""
         self.base_ms.clear()
         self.lod_triangles = None
+        self._recent.clear()
+        self._local.clear()
         self.overhead_ms = None
         self.ema_ms = None
         self._forget_steps()
@@ -318,6 +331,10 @@ class Governor:
         if self.frames <= WARMUP_FRAMES:
             self.overrides = self._overrides(user)
             return self.overrides
+        if len(self._local) >= 4:  # each frame against the usual one of the last few: a
+            # change of knobs moves that, not the spread
+            self._recent.append(frame_ms / float(np.median(self._local)))
+        self._local.append(frame_ms)
         if self.since_change > 0:  # the first frame with new knobs compiles and allocates
             self._learn(user, pass_ms, frame_ms)
             self.ema_ms = (
@@ -328,7 +345,7 @@ class Governor:
             self._backoff[k] -= 1
             if self._backoff[k] <= 0:
                 del self._backoff[k]
-        budget = self.budget_ms
+        budget = self.aim_ms()
         if self._restored is not None and self.frames - self._restored[1] > 6 * MIN_FRAMES:
             self._restored = None
         if self.since_change >= MIN_FRAMES and self._pending is not None:
@@ -342,6 +359,23 @@ class Governor:
                 self._restore(user, budget)
         self.overrides = self._overrides(user)
         return self.overrides
+
+    def spread(self) -> float:
+        """How much slower than the usual (median) frame one in ten recent frames is, each
+        against the median of the 8 before it (1.0 until there are 16 of them; at most
+        MAX_SPREAD)."""
+        if len(self._recent) < 16:
+            return 1.0
+        ratios = np.asarray(self._recent)
+        median = float(np.median(ratios))
+        if median <= 0:
+            return 1.0
+        return float(np.clip(np.quantile(ratios, SPREAD_QUANTILE) / median, 1.0, MAX_SPREAD))
+
+    def aim_ms(self) -> float:
+        """The frame time the governor holds: the budget, or lower where frames vary so much
+        that the slow ones would pass it by more than WITHIN."""
+        return min(self.budget_ms, WITHIN * self.budget_ms / self.spread())
 
     def _changed(self, user: Settings, action: str, knob: Knob, value: Any, ema: float) -> None:
         self.history.append(
@@ -530,6 +564,12 @@ class Governor:
             f"Budget {self.budget_ms:.0f} ms a frame ({1000.0 / self.budget_ms:.0f} fps); "
             + (f"frames take {self.ema_ms:.0f} ms." if self.ema_ms else "measuring.")
         ]
+        aim = self.aim_ms()
+        if aim < self.budget_ms - 0.5:
+            lines.append(
+                f"Frame times vary (one in ten takes {self.spread():.1f}x the usual): "
+                f"aiming at {aim:.0f} ms so that they stay within the budget."
+            )
         if self.refining:
             lines.append("Standing still: full quality while the picture refines.")
             return lines
@@ -562,6 +602,7 @@ class Governor:
             "lowered": sum(d.action == "lower" for d in self.history),
             "restored": sum(d.action == "restore" for d in self.history),
             "final": dict(self.overrides),
+            "aim_ms": round(self.aim_ms(), 2),  # the budget, lowered where frames vary
             # What the timers taught of the model (knob step -> category -> factor on it).
             "learnt": {
                 f"{key}#{step}": {c: round(v, 3) for c, v in scales.items() if v != 1.0}

@@ -71,7 +71,7 @@ LOD_SHARE = {0: 1.0, 2: 0.7, 4: 0.55, 8: 0.45}
 #: The allowed errors (pixels of the view, before the render scale) at which the renderer
 #: counts the triangles in view (``Governor.lod_triangles``): a step's render.lod_bias b at
 #: render scale s allows b / s of them.
-LOD_ERRORS = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
+LOD_ERRORS = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0)
 #: The part of the geometry pass that follows the triangles drawn, where they are counted
 #: (the rest follows the pixels). Real rooms at 2x640x720 on llvmpipe: the bathroom 0.72,
 #: the staircase 0.51 of the pass at full quality (367k and 241k triangles).
@@ -155,8 +155,8 @@ PRIOR_KNOBS: tuple[Knob, ...] = (
     Knob(
         "simpler far geometry",
         "render.lod_bias",
-        tuple({"render.lod_bias": n} for n in (2, 4, 8)),
-        (0.004, 0.006, 0.01),
+        tuple({"render.lod_bias": n} for n in (2, 4, 8, 16)),
+        (0.004, 0.006, 0.01, 0.03),  # 16 px: a last resort for rooms of many triangles
         cheaper_is_higher=True,
     ),
     Knob(
@@ -226,17 +226,18 @@ def measured_knobs(
     table: dict[str, list[float]], priors: tuple[Knob, ...] = PRIOR_KNOBS
 ) -> tuple[Knob, ...]:
     """The knobs with the table's errors: each step's loss over the worst step before it (the
-    table holds losses from full quality), at least :data:`MIN_STEP_ERROR`."""
+    table holds losses from full quality), at least :data:`MIN_STEP_ERROR`; a knob with more
+    steps than the table measured keeps its priors for the steps beyond."""
     out = []
     for knob in priors:
         weights = table.get(knob.key)
-        if weights is None or len(weights) != len(knob.steps):
+        if weights is None or not 0 < len(weights) <= len(knob.steps):
             out.append(knob)
             continue
         # Counted from the worst step before it, so the increments add up to the worst loss.
         before = [0.0, *np.maximum.accumulate(weights)[:-1]]
         errors = tuple(max(MIN_STEP_ERROR, float(w - b)) for w, b in zip(weights, before))
-        out.append(replace(knob, error=errors))
+        out.append(replace(knob, error=errors + knob.error[len(errors) :]))
     return tuple(out)
 
 
