@@ -185,7 +185,7 @@ class Governor:
                 continue
             if knob.key == "cps.max_level" and user.cps.mode not in ("none", "cps"):
                 continue
-            if knob.key == "render.shadows" and user.render.shadows != "soft":
+            if knob.key == "render.shadows" and user.render.shadows == "off":
                 continue
             out.append((knob, steps))
         return out
@@ -351,11 +351,15 @@ class Governor:
         if self.since_change >= MIN_FRAMES and self._pending is not None:
             self._learn_step(user)
         if self.since_change >= MIN_FRAMES and self.ema_ms is not None:
+            # The usual frame since the last change: one slow frame (the machine's other
+            # work) does not lower the knobs; the aim already leaves room for such frames.
+            since = list(self._local)[-min(self.since_change, len(self._local)) :]
+            usual = float(np.median(since)) if since else self.ema_ms
             if self._free_restore(user):
                 pass
-            elif self.ema_ms > budget:
+            elif usual > budget:
                 self._lower(user, budget)
-            elif self.ema_ms < RESTORE_BELOW * budget:
+            elif usual < RESTORE_BELOW * budget:
                 self._restore(user, budget)
         self.overrides = self._overrides(user)
         return self.overrides
@@ -406,8 +410,9 @@ class Governor:
             ]
             normal = [(k, s) for k, s in knobs if not k.fovea]
             fovea = [(k, s) for k, s in knobs if k.fovea]
-            # The fovea's knobs only when nothing else saves time.
-            best = self._best_step(user, position, predicted, normal)
+            # A last resort, then the fovea's knobs, only when nothing else saves time.
+            best = self._best_step(user, position, predicted, normal, last_resorts=False)
+            best = best or self._best_step(user, position, predicted, normal)
             best = best or self._best_step(user, position, predicted, fovea)
             if best is None:
                 break
@@ -423,7 +428,12 @@ class Governor:
                 self._changed(user, "lower", knob, steps[i - 1][knob.key], ema)
 
     def _best_step(
-        self, user: Settings, position: dict[str, int], predicted: float, pool: list
+        self,
+        user: Settings,
+        position: dict[str, int],
+        predicted: float,
+        pool: list,
+        last_resorts: bool = True,
     ) -> tuple[float, Knob, int, float] | None:
         """The step of ``pool``'s knobs with the least error per millisecond it saves:
         (score, knob, new position, predicted ms), None where none saves time. A jump of
@@ -432,7 +442,8 @@ class Governor:
         best: tuple[float, Knob, int, float] | None = None
         for knob, steps in pool:
             i = position.get(knob.key, 0)
-            for j in range(i + 1, len(steps) + 1):
+            last = len(steps) - (1 if knob.last_resort and not last_resorts else 0)
+            for j in range(i + 1, last + 1):
                 after = self.predict(user, {**position, knob.key: j})
                 saved = predicted - after
                 if saved <= 1e-3:  # a step that saves nothing is never a trade
@@ -537,7 +548,13 @@ class Governor:
         predicted = self.predict(user, self.position)
         correction = (self.ema_ms or predicted) - predicted
         best: tuple[tuple[int, float], Knob] | None = None
-        for knob, steps in self._knobs_all(user):
+        knobs = self._knobs_all(user)
+        resorted = [
+            (k, s) for k, s in knobs if k.last_resort and self.position.get(k.key, 0) >= len(s)
+        ]
+        if resorted:  # a last resort taken: it comes back first, after the fovea's knobs
+            knobs = resorted + [(k, s) for k, s in knobs if k.fovea]
+        for knob, steps in knobs:
             i = self.position.get(knob.key, 0)
             if i <= 0 or knob.key in self._backoff:
                 continue

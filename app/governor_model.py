@@ -107,6 +107,8 @@ class Knob:
     error: tuple[float, ...]
     fovea: bool = False
     cheaper_is_higher: bool = False  # the key's value grows as the step gets cheaper
+    # Its last step only when no other knob's step saves time, and it is given back first.
+    last_resort: bool = False
 
     def error_of(self, step: dict[str, Any]) -> float:
         """The quality ``step`` (one of :attr:`steps`) loses against the step before it."""
@@ -120,6 +122,9 @@ class Knob:
             return []
         if self.key == "cps.max_level" and user.cps.mode != "cps":
             return list(self.steps)  # CPS off: the governor may turn it on, from level 1
+        names = [step[self.key] for step in self.steps]
+        if mine in names and isinstance(mine, str):  # the steps after the user's own
+            return list(self.steps[names.index(mine) + 1 :])
         out = []
         for step in self.steps:
             value = step[self.key]
@@ -166,7 +171,13 @@ PRIOR_KNOBS: tuple[Knob, ...] = (
         (0.003, 0.005),
         cheaper_is_higher=True,
     ),
-    Knob("hard shadow edges", "render.shadows", ({"render.shadows": "hard"},), (0.012,)),
+    Knob(
+        "shadows",
+        "render.shadows",
+        ({"render.shadows": "hard"}, {"render.shadows": "off"}),
+        (0.012, 0.3),  # none at all: a last resort (a hundred lamps in view)
+        last_resort=True,
+    ),
     Knob("plain enlarging", "render.upscaler", ({"render.upscaler": "bilinear"},), (0.006,)),
     Knob(
         "render scale",
@@ -265,7 +276,8 @@ def cost_factors(
     if cps_on:  # a smaller sharp area and a faster falloff light fewer full-rate samples
         periphery *= 0.85 + 0.15 * min(1.0, fovea / 10.0) * min(1.0, falloff / 6.0)
     upscaler = values.get("render.upscaler", "edge")
-    soft = 1.0 if values.get("render.shadows", "soft") == "soft" else 0.85
+    shadows = values.get("render.shadows", "soft")
+    soft = {"soft": 1.0, "hard": 0.85}.get(shadows, 0.0)  # off: no mask, no maps drawn
     updates = max(1, int(values.get("render.shadow_updates_per_frame", 2)))
     return {
         "pixels": s * s,
@@ -279,7 +291,7 @@ def cost_factors(
         "cps_shading": s * s * periphery if cps_on else 0.0,
         "cps": 0.2 + 0.8 * s * s if cps_on else 0.0,
         "shadow_mask": s * s * soft,
-        "shadows": min(1.0, updates / 2.0),
+        "shadows": min(1.0, updates / 2.0) if soft > 0.0 else 0.0,
         "photons": s * s,
         # Enlarging the eyes (tone map at the drawn size, then EASU at the view's) measured
         # 2-2.5x the plain present on llvmpipe; bilinear enlarging about the same as none.

@@ -193,31 +193,38 @@ def frustum_planes(view_projection: np.ndarray) -> np.ndarray:
     return planes / np.linalg.norm(planes[:, :3], axis=1, keepdims=True)
 
 
-def reaches_view(light: Light, eyes: list[EyeView]) -> bool:
-    """Whether the light's range sphere meets either eye's frustum (the sun always does)."""
-    if light.kind == "directional":
-        return True
-    c = np.append(np.asarray(light.position, np.float64), 1.0)
-    return any(
-        bool(np.all(frustum_planes(eye.view_projection) @ c >= -light.range_m)) for eye in eyes
-    )
-
-
-def wanted_size(light: Light, eyes: list[EyeView]) -> int:
-    """Tile edge from the light's influence on screen: the projected radius of its range sphere
-    in pixels, as a power of two within MIN_FACE..MAX_FACE (the sun: SUN_TILE)."""
-    if light.kind == "directional":
-        return SUN_TILE
-    best = 0.0
-    for eye in eyes:
-        d = float(np.linalg.norm(np.asarray(light.position) - eye.position))
-        r = light.range_m
-        if d <= r:
-            return MAX_FACE
-        radius_px = r / math.sqrt(d * d - r * r) * float(eye.projection[1, 1]) * eye.height / 2
-        best = max(best, radius_px)
-    size = 1 << max(0, math.ceil(math.log2(max(best, 1.0))))
-    return int(min(max(size, MIN_FACE), MAX_FACE))
+def wanted_sizes(lights: list[Light], eyes: list[EyeView]) -> dict[int, int]:
+    """Per light whose range sphere meets either eye's frustum (the sun always does), its
+    tile edge from its influence on screen: the projected radius of its range sphere in
+    pixels, as a power of two within MIN_FACE..MAX_FACE (the sun: SUN_TILE). Every light at
+    once (the corridor holds a hundred)."""
+    local = [i for i, light in enumerate(lights) if light.kind != "directional"]
+    size = np.zeros(len(local), np.int64)
+    reach = np.zeros(len(local), bool)
+    if local and eyes:
+        pos = np.array([lights[i].position for i in local], np.float64)
+        r = np.array([lights[i].range_m for i in local], np.float64)
+        homo = np.c_[pos, np.ones(len(pos))]
+        best = np.zeros(len(local))
+        inside = np.zeros(len(local), bool)
+        for eye in eyes:
+            planes = frustum_planes(eye.view_projection)
+            reach |= np.all(homo @ planes.T >= -r[:, None], axis=1)
+            d = np.linalg.norm(pos - np.asarray(eye.position, np.float64), axis=1)
+            inside |= d <= r
+            px = float(eye.projection[1, 1]) * eye.height / 2
+            radius = r / np.sqrt(np.maximum(d * d - r * r, 1e-12)) * px
+            best = np.maximum(best, np.where(d <= r, 0.0, radius))
+        edge = np.exp2(np.ceil(np.log2(np.maximum(best, 1.0))))
+        size = np.where(inside, MAX_FACE, np.clip(edge, MIN_FACE, MAX_FACE)).astype(np.int64)
+    at = {i: k for k, i in enumerate(local)}
+    out = {}
+    for i, light in enumerate(lights):
+        if light.kind == "directional":
+            out[i] = SUN_TILE
+        elif reach[at[i]]:
+            out[i] = int(size[at[i]])
+    return out
 
 
 def fit_sizes(
@@ -348,14 +355,15 @@ class ShadowPass(RenderPass):
         self.pending = 0
         wanted: dict[int, tuple[int, int]] = {}
         if self.mode:
+            sizes = wanted_sizes(lights, frame.eyes)
             for i, light in enumerate(lights):
                 if (
                     light.casts_shadows
                     and light.intensity > 0.0
                     and math.isfinite(light.intensity)
-                    and reaches_view(light, frame.eyes)
+                    and i in sizes
                 ):
-                    wanted[i] = (wanted_size(light, frame.eyes), faces_of(light))
+                    wanted[i] = (sizes[i], faces_of(light))
         for i, (size, faces) in wanted.items():  # hysteresis: a step of 2x keeps the tiles
             if i in self.maps and size // 2 <= self.maps[i].size <= size * 2:
                 wanted[i] = (self.maps[i].size, faces)
@@ -384,12 +392,18 @@ class ShadowPass(RenderPass):
     ) -> dict[int, tuple[int, int]]:
         """The most prominent lights whose tiles fit the block (the sun, then the nearest)."""
 
+        order = list(wanted)
+        near = np.full(len(order), np.inf)
+        if order and eyes:
+            pos = np.array([lights[i].position for i in order], np.float64)
+            for e in eyes:
+                near = np.minimum(near, np.linalg.norm(pos - np.asarray(e.position), axis=1))
+        gap = {i: float(d) - lights[i].range_m for i, d in zip(order, near)}
+
         def prominence(i: int) -> tuple:
-            light = lights[i]
-            if light.kind == "directional":
+            if lights[i].kind == "directional":
                 return (0, 0.0, i)
-            d = min(float(np.linalg.norm(np.asarray(light.position) - e.position)) for e in eyes)
-            return (1, d - light.range_m, i)
+            return (1, gap[i], i)
 
         out: dict[int, tuple[int, int]] = {}
         used = 0

@@ -499,3 +499,34 @@ def test_frames_that_vary_are_held_within_budget_by_aiming_lower():
     assert over(times) <= 0.05 < over(at_budget), (over(times), over(at_budget))
     steady, _, _ = run(user, 200)
     assert steady.spread() < 1.05 and steady.aim_ms() == pytest.approx(budget)
+
+
+def test_shadows_go_hard_then_off_and_never_back_up_from_the_users_choice():
+    from app.governor import KNOBS
+
+    knob = next(k for k in KNOBS if k.key == "render.shadows")
+    user = walking("30")
+    assert [s["render.shadows"] for s in knob.usable_steps(user)] == ["hard", "off"]
+    user.set("render.shadows", "hard")
+    assert [s["render.shadows"] for s in knob.usable_steps(user)] == ["off"]
+    user.set("render.shadows", "off")
+    assert knob.usable_steps(user) == []
+    off = cost_factors({"render.shadows": "off"})
+    assert off["shadow_mask"] == 0.0 and off["shadows"] == 0.0
+    assert cost_factors({"render.shadows": "hard"})["shadow_mask"] > 0.0
+    # The last resort: dearer in quality than any other step of the knobs that may go first.
+    assert knob.error[-1] > max(e for k in KNOBS if not k.fovea and k is not knob for e in k.error)
+
+
+def test_no_shadows_is_the_last_step_taken_and_the_first_given_back():
+    user = walking("30")
+    gov, _, _ = run(user, 40, load=lambda i: 6.0)  # far too slow for anything but everything
+    lowered = [(d.knob, d.value) for d in gov.history if d.action == "lower"]
+    fovea = {"sharp area around the gaze", "detail falloff"}
+    off = lowered.index(("shadows", "off"))
+    assert all(k in fovea for k, _ in lowered[off + 1 :])  # only the fovea's knobs after it
+    assert len([k for k, _ in lowered[:off] if k not in fovea]) >= 8  # everything else first
+    run(user, 120, load=lambda i: 0.3, gov=gov)
+    restored = [(d.knob, d.value) for d in gov.history if d.action == "restore"]
+    first_other = next(r for r in restored if r[0] not in fovea)
+    assert first_other == ("shadows", "hard")
