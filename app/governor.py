@@ -185,8 +185,6 @@ class Governor:
                 continue
             if knob.key == "cps.max_level" and user.cps.mode not in ("none", "cps"):
                 continue
-            if knob.key == "render.shadows" and user.render.shadows == "off":
-                continue
             out.append((knob, steps))
         return out
 

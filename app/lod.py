@@ -96,7 +96,9 @@ def chunk_mesh(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, 
     return tris, Chunks(first, count, np.zeros(first.shape), np.array(los), np.array(his))
 
 
-def _meshopt(points: np.ndarray, tris: np.ndarray, fraction: float, keep_border: bool):
+def _meshopt(
+    points: np.ndarray, tris: np.ndarray, fraction: float, keep_border: bool
+) -> tuple[np.ndarray, float]:
     """meshoptimizer's simplification of (k, 3) ``tris`` over ``points`` towards ``fraction``
     of them: the triangles (of the same points) and the absolute error."""
     import meshoptimizer

@@ -18,8 +18,9 @@ log = logging.getLogger(__name__)
 
 HELP = (
     "To hold the frame rate while you walk, the picture is simplified where you would notice "
-    "least: first the edges of the view, then the resolution, the area around your gaze last. "
-    "Standing still brings back full quality."
+    "least: first distant objects and the edges of the view, then the resolution; shadows "
+    "only when nothing else is left, the area around your gaze last. Standing still brings "
+    "back full quality."
 )
 
 
