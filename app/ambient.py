@@ -53,11 +53,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from app.ambient_field import (
+    AXES,
+    COVERED_M,
+    COVERED_SHARE,
+    AmbientField,
+    build_field,
+    cell_size,
+)
 from app.photons import _mesh_optics, _scene_geometry
 from app.raycast import RayCaster
 from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff
@@ -100,6 +108,9 @@ class AmbientEstimate:
     # rho (E_direct + E_indirect) against E_indirect (shading.glsl occluded_share; -1:
     # unknown, the surface's own albedo stands for it).
     occluder_return: float = -1.0
+    # The bounce light by place (render.ambient_by_place, app.ambient_field): each probe
+    # face's own value on a grid, the level above where the grid has none; None: no field.
+    by_place: AmbientField | None = field(default=None, compare=False, repr=False)
 
     def along(self, normal: Sequence[float]) -> float:
         """The even light of a surface facing ``normal`` (a unit vector)."""
@@ -149,6 +160,7 @@ class AmbientProbe:
     ) -> None:
         self.points = np.zeros((0, 3))
         self.mean_albedo = 0.0
+        self._cell: float | None = None
         self._record: list[tuple[np.ndarray, np.ndarray]] | None = None
         tris, owner, _vn = _scene_geometry(scene)
         if tris.shape[0] == 0:
@@ -197,11 +209,14 @@ class AmbientProbe:
         n = len(self.points)
         self.paths = np.full((2 * n, GATHER_RAYS), -1, np.int64)
         self.crease = np.zeros(2 * n)  # per face, the share of its rays that end nearby
+        self.covered = np.zeros(2 * n, bool)  # per face: something lies on it (a rug)
         self._hits: list[tuple[np.ndarray, np.ndarray]] = []
         for k, side in enumerate((1.0, -1.0)):
-            self._near_hits: list[np.ndarray] = []
+            self._ray_dist: list[np.ndarray] = []
             self.paths[k::2] = self._faces_seen(self.points, self.normal * side, rng)
-            self.crease[k::2] = np.mean(self._near_hits, axis=0)
+            dist = np.stack(self._ray_dist)
+            self.crease[k::2] = np.mean(dist < CREASE_M, axis=0)
+            self.covered[k::2] = np.mean(dist < COVERED_M, axis=0) >= COVERED_SHARE
         # Where each face's rays hit (NaN: a miss) and the hit surface's normal turned to the
         # ray: the sun's first bounce is found there exactly (its patch is small and bright).
         self.hit_at = np.empty((2 * n, GATHER_RAYS, 3), np.float32)
@@ -215,15 +230,15 @@ class AmbientProbe:
         self.seen = _seen_side(self._seen_from_standing_points(scene, c, rng), c)
 
     def _faces_met(
-        self, origins: np.ndarray, dirs: np.ndarray, crease_hits: list[np.ndarray] | None = None
+        self, origins: np.ndarray, dirs: np.ndarray, ray_dist: list[np.ndarray] | None = None
     ) -> np.ndarray:
         """The face (2 i + k) that stands for where each ray first meets the scene, -1 on a
         miss: of the ``NEAREST`` points nearest to the hit, the nearest one on the hit's own
         surface (in its plane, facing the same way), so that a hit on a rug does not take the
         floor hidden under it; the nearest point when none is."""
         dist, tri = self.caster.cast_triangles(origins, dirs)
-        if crease_hits is not None:  # the rays that end nearby (see CREASE_M)
-            crease_hits.append(dist < CREASE_M)
+        if ray_dist is not None:  # how far each ray went (creases, covered faces)
+            ray_dist.append(dist)
         out = np.full(len(origins), -1, np.int64)
         hit = np.isfinite(dist) & (tri >= 0)
         if not hit.any():
@@ -258,7 +273,7 @@ class AmbientProbe:
         self._record = []
         for _ in range(GATHER_RAYS):
             d = _cosine(normal, rng.random(len(points)), rng.random(len(points)))
-            cols.append(self._faces_met(points + normal * self.eps, d, self._near_hits))
+            cols.append(self._faces_met(points + normal * self.eps, d, self._ray_dist))
         at = np.stack([a for a, _ in self._record], axis=1)  # (P, GATHER_RAYS, 3)
         facing = np.stack([f for _, f in self._record], axis=1)
         self._record = None
@@ -379,6 +394,23 @@ class AmbientProbe:
             gradient,
             (float(mean_n[0]), float(mean_n[1]), float(mean_n[2])),
             _occluder_return(self.crease, self.rho[np.arange(2 * n) // 2], e0, total, c),
+            self._by_place(total, c, indirect + (AXES - mean_n) @ np.asarray(gradient)),
+        )
+
+    def _by_place(
+        self, total: np.ndarray, closure: np.ndarray, levels: np.ndarray
+    ) -> AmbientField | None:
+        """The faces' own bounce light on a grid (app.ambient_field): those that see the
+        scene and have nothing lying on them."""
+        faces = np.flatnonzero((closure > 0.0) & ~self.covered)
+        if not len(faces):
+            return None
+        facing = self.normal[faces // 2] * np.where(faces % 2 == 0, 1.0, -1.0)[:, None]
+        if self._cell is None:  # the same grid for every set of lights
+            self._cell = cell_size(self.points)
+        level = np.maximum(levels, 0.0)  # AmbientEstimate.along the six axes
+        return build_field(
+            self.points[faces // 2], facing, total[faces] / math.pi, level, self._cell
         )
 
 

@@ -206,6 +206,15 @@ class RenderSettings:
         label="Even light from the lamps",
         paper="Split-flux estimate of the indirect light (lighting design's enclosure model)",
     )
+    ambient_by_place: bool = _opt(
+        True,
+        "Lets the even light vary across the room as the light bounced off its surfaces "
+        "does: brighter beside a sunlit window or a lamp-lit wall, dimmer in a far corner. "
+        "Off: one level for the whole room, by the way a surface faces. Needs the even "
+        "light from the lamps.",
+        label="Even light varies by place",
+        paper="Irradiance volume from the estimate's radiosity points",
+    )
     normal_maps: bool = _opt(
         True,
         "Shows the fine relief a material gives its surface, such as the joints between "

@@ -119,6 +119,7 @@ TEXTURE_UNITS = {
             "shadow_atlas",  # the shadow maps' depth atlas (bound once per frame)
             "irradiance_cache",  # the photon map's irradiance cache (render/photons.py)
             "shadow_mask",  # the shadow mask (render/shadow_mask.py)
+            "ambient_field",  # the even light by place (render/ambient_field.py)
         )
     )
 }

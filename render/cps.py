@@ -282,7 +282,7 @@ class CpsLightingPass(CpsPass):
         cf = frame.cps
         frame.scene.light_buffer.bind_to_uniform_block(0)
         compute = self.stage == "compute"
-        defines = lighting_defines(res)
+        defines = lighting_defines(res, frame)
         prog: moderngl.Program | moderngl.ComputeShader
         if compute:
             prog = self.shaders.compute(

@@ -94,6 +94,8 @@ class FrameContext:
     # What the surfaces that hide part of a crease's hemisphere send back against the even
     # light they hide (app.ambient.AmbientEstimate.occluder_return); negative: unknown.
     occluder_return: float = -1.0
+    # The even light by place (render.ambient_field.GpuAmbientField; None: the level alone).
+    ambient_field: Any = None
 
 
 # Resource name -> where the renderer's targets keep it: (table, attribute).

@@ -13,6 +13,7 @@ import moderngl
 import numpy as np
 
 from app.camera import EyeView, gl_bytes
+from render.ambient_field import bind_field
 from render.constants import (
     ALL_LIGHTS,
     CPS_LEVEL_COLOURS,  # noqa: F401 - re-exported (ui.cps_panel, tests)
@@ -107,6 +108,7 @@ def scene_uniforms(prog: moderngl.Program | moderngl.ComputeShader, frame: Frame
             "u_occluder_return": frame.occluder_return,
         },
     )
+    bind_field(prog, frame.ambient_field)
 
 
 def _draw_meshes(
@@ -135,6 +137,8 @@ def _draw_meshes(
             defines["AO"] = True
         if sky is not None:  # the forward path's daylight (render.sky)
             defines["SKY"] = True
+        if frame.ambient_field is not None and fragment == "forward.frag.glsl":
+            defines["AMBIENT_FIELD"] = True  # the forward and blend paths shade
         if tcr:
             defines["TCR_PAPER" if frame.tcr_mode == "paper" else "TCR_CLAMP"] = True
             defines["TCR_TINT"] = frame.tint
@@ -239,7 +243,7 @@ class LightingPass(RenderPass):
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         frame.scene.light_buffer.bind_to_uniform_block(0)
-        defines = lighting_defines(res)
+        defines = lighting_defines(res, frame)
         prog: moderngl.Program | moderngl.ComputeShader
         if self.stage == "compute":
             prog = self.shaders.compute("lighting.comp.glsl", defines)
@@ -264,10 +268,12 @@ class LightingPass(RenderPass):
             )
 
 
-def lighting_defines(res: Resources) -> dict[str, object]:
-    """The deferred.glsl variant this frame needs (tile lists, photon-map indirect light)."""
+def lighting_defines(res: Resources, frame: FrameContext) -> dict[str, object]:
+    """The deferred.glsl variant this frame needs (tile lists, photon-map indirect light,
+    the even light by place)."""
     fused = res.get("photon_map")
     defines: dict[str, object] = {
+        "AMBIENT_FIELD": frame.ambient_field is not None,
         "TILED_LIGHTS": res.written("tile_lists"),
         "INDIRECT": res.get("indirect") is not None,
         "AO": res.get("ao") is not None,  # ambient occlusion (render/ao.py)

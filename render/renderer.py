@@ -18,6 +18,7 @@ import moderngl
 import numpy as np
 
 from app.ambient import AmbientEstimate, AmbientProbe, probe_for
+from app.ambient_field import AmbientField
 from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import LOD_ERRORS, Governor, apply_overrides
@@ -29,6 +30,7 @@ from app.settings import Settings
 from app.sky import scene_sky, sun_light
 from app.tcr import finest_per_texture
 from render.ab_split import ABSplitPass, SplitFrame
+from render.ambient_field import GpuAmbientField
 from render.ao import AmbientOcclusionPass
 from render.constants import CPS_LEVELS
 from render.cps import (
@@ -154,6 +156,7 @@ class Renderer:
         # The estimated ambient term for a scene and its lights, and the scene's probe.
         self._ambient: tuple[GpuScene, tuple, AmbientEstimate] | None = None
         self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
+        self._field: tuple[AmbientField, GpuAmbientField] | None = None  # its field, uploaded
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
@@ -309,6 +312,7 @@ class Renderer:
             ambient=ambient,
             ambient_gradient=gradient,
             occluder_return=-1.0 if est is None else est.occluder_return,
+            ambient_field=self._field_for(est, settings),
             exposure=self._exposure_scale * r.exposure,
             out=out,
             out_origin=origin,
@@ -325,6 +329,18 @@ class Renderer:
             refine_target=int(frame.refine_target),
             normal_maps=bool(r.normal_maps),
         )
+
+    def _field_for(self, est: AmbientEstimate | None, settings: Settings) -> GpuAmbientField | None:
+        """The estimate's even light by place on the GPU (``render.ambient_by_place``),
+        uploaded once per estimate."""
+        field = est.by_place if est is not None and settings.render.ambient_by_place else None
+        if field is None:
+            return None
+        if self._field is None or self._field[0] is not field:
+            if self._field is not None:
+                self._field[1].release()
+            self._field = (field, GpuAmbientField(self.ctx, field))
+        return self._field[1]
 
     def ambient_term(self) -> float:
         """The frame's ambient term: estimated from the frame's lights and the sky
@@ -654,4 +670,6 @@ class Renderer:
         if self.gpu_scene is not None:
             self.gpu_scene.release()
         self._empty.release()
+        if self._field is not None:
+            self._field[1].release()
         self.shaders.release()

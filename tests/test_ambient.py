@@ -95,6 +95,7 @@ def test_the_frame_takes_the_estimate():
     brighter by (albedo + its specular share) x (the estimate for the way the wall faces -
     render.ambient)."""
     s = Settings()
+    s.set("render.ambient_by_place", False)  # the one level (the field: test_ambient_field)
     s.set("render.ambient_estimate", False)
     fixed = _wall_luminance(s)
     s.set("render.ambient_estimate", True)

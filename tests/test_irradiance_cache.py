@@ -124,6 +124,7 @@ def test_cache_under_coarse_shading_lights_every_block():
         _, _, lit = gbuffer_points(host, 0, fi)
         e = indirect_of(host)
         s.photons.enabled = "off"
+        s.render.ambient_estimate = False  # no bounced light at all (the fixed ambient)
         dark = host.draw(fi)
     assert (e[np.flipud(lit)].sum(axis=-1) > 0).mean() > 0.95  # every surface pixel looked up
     assert img.astype(float).mean() > dark.astype(float).mean() + 1.0  # bounced light added

@@ -82,6 +82,12 @@ FEATURES: tuple[Feature, ...] = (
         {"render.ambient_estimate": True},
         {"render.ambient_estimate": False},
     ),
+    Feature(
+        "ambient_by_place",
+        "Even light by place (not one level)",
+        {"render.ambient_by_place": True},
+        {"render.ambient_by_place": False},
+    ),
     Feature("cps", "Coarse pixel shading", {"cps.mode": "cps"}, {"cps.mode": "none"}),
 )
 

@@ -33,6 +33,31 @@ uniform float u_light_scale;  // brightness setting times exposure-independent s
 uniform float u_ambient;
 uniform vec3 u_ambient_gradient;  // the even light of normal N: max(u_ambient + g . N, 0)
 uniform float u_occluder_return;  // what hides a crease's light sends back (< 0: unknown)
+#ifdef AMBIENT_FIELD
+// The even light by place (app/ambient_field.py, render.ambient_by_place): per cell and way of
+// facing, the bounce light found there (the one level where none was); slab 0 of the texture
+// holds (+X, -X, +Y, -Y), slab 1 (+Z, -Z).
+uniform sampler3D u_ambient_field;
+uniform vec4 u_af_origin_cell;
+uniform ivec3 u_af_dims;
+
+// The bounce light at P for normal N: the three grids on N's side, trilinear, by N's squared
+// components (AmbientField.lookup is the CPU twin).
+float even_light(vec3 P, vec3 N, float level) {
+    vec3 dims = vec3(u_af_dims);
+    vec3 g = clamp((P - u_af_origin_cell.xyz) / u_af_origin_cell.w, vec3(0.5), dims - 0.5);
+    vec2 xy = g.xy / dims.xy;
+    vec4 a = textureLod(u_ambient_field, vec3(xy, g.z / (2.0 * dims.z)), 0.0);
+    vec2 b = textureLod(u_ambient_field, vec3(xy, (g.z + dims.z) / (2.0 * dims.z)), 0.0).rg;
+    vec3 n2 = N * N;
+    return n2.x * (N.x >= 0.0 ? a.r : a.g) + n2.y * (N.y >= 0.0 ? a.b : a.a)
+           + n2.z * (N.z >= 0.0 ? b.r : b.g);
+}
+#else
+float even_light(vec3 P, vec3 N, float level) {
+    return level;
+}
+#endif
 #include "sky.glsl"
 
 // Smooth window: 1 near the light, exactly 0 at the range, so culling by range is exact.
@@ -91,7 +116,7 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
     vec3 occlusion = occluded_share(material_occlusion() * ambient_occlusion(), albedo);
     vec2 env = env_brdf(roughness, clamp(dot(N, V), 0.0, 1.0));
     vec3 even = diffuse_color + spec_color * env.x + env.y;
-    float level = max(u_ambient + dot(u_ambient_gradient, N), 0.0);
+    float level = even_light(P, N, max(u_ambient + dot(u_ambient_gradient, N), 0.0));
     vec3 sum = (level * even + sky_ambient(N, albedo)) * occlusion;
 #ifdef TILED_LIGHTS
     uint tile_count = texelFetch(u_tile_counts, g_tile, 0).r;

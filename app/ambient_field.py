@@ -1,0 +1,165 @@
+"""The even light by place: the ambient estimate's bounce light kept where it was found.
+
+Setting ``render.ambient_by_place``. The estimate (``app.ambient``) solves the light bounced
+round the room on a few thousand surface points and then averages it into one level (turned
+by the way a surface faces). One level, however right its mean, lights a far corner as much
+as the wall beside a sunlit window: against Cycles the daylit showroom got worse when the
+level was raised to the right mean (docs/reference_flip.md). This keeps each point's own
+value instead, on a coarse grid the shaders look up (an irradiance volume, as games bake them):
+
+- every face of a probe point (its position, the way it faces, its bounce light
+  ``E_ind / pi``) is spread over the cells around it with a tent ``SPREAD`` cells wide, into
+  six grids by the way it faces (+X, -X, +Y, -Y, +Z, -Z, by the squared components of its
+  normal, as the photon map's irradiance cache keeps arrival directions);
+- a cell stores the mean it received, as sure as the weight it received against
+  ``FULL_WEIGHT`` (at most 1) and the one level for the rest: ``mean x sure + (1 - sure) x
+  level`` (the level of a surface facing that grid's way): where no face was found nearby
+  (an open space, a grid's edge) the level stands in, so nothing is darker than before for
+  want of points;
+- a pixel of normal N reads the three grids on N's side trilinearly, weighted by N's squared
+  components (two fetches: the six grids packed in two RGBA slabs).
+
+Faces that see nothing (a wall's outer side) and faces covered by something lying on them
+(most of their rays end within ``COVERED_M``: the floor under a rug, which no one sees and
+which receives nothing) are left out. The cell is about the points' spacing (twice their median
+nearest-neighbour distance, within ``CELL_M``), so each cell averages a dozen faces' 16 rays;
+one grid of a few hundred kilobytes. Built in a few milliseconds with the estimate, each time
+the lights or the sun change.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+BUCKETS = 6  # +X, -X, +Y, -Y, +Z, -Z
+SPREAD = 2.0  # a face's tent reaches this many cells each way
+FULL_WEIGHT = 8.0  # a cell that received this much weight is taken as it is
+SPACINGS = 4.0  # the cell, in median nearest-neighbour distances of the points
+CELL_M = (0.1, 2.0)  # the cell's edge, metres, at least and at most
+MAX_CELLS = 1 << 17  # per direction grid (the cell grows beyond): 6 x 1 MB at most
+COVERED_M = 0.05  # a ray that ends this close met something lying on the face
+COVERED_SHARE = 0.5  # a face is covered when this share of its rays end that close
+
+
+@dataclass(frozen=True)
+class AmbientField:
+    """The bounce light by place and facing, on a grid.
+
+    ``values`` is (6, Z, Y, X) float32: per direction grid and cell ``mean x sure + (1 - sure)
+    x level`` (the level of a surface facing that way where the cell is unsure); cell (i, j, k)
+    spans ``origin + cell * [i, j, k]`` to ``origin + cell * [i + 1, j + 1, k + 1]``.
+    """
+
+    origin: np.ndarray  # (3,) float64
+    cell: float
+    dims: tuple[int, int, int]  # cells along x, y, z
+    values: np.ndarray
+    faces: int  # faces spread into it
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.values.nbytes)
+
+    def lookup(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """The even light at world ``points`` of unit ``normals``: a CPU twin of shading.glsl
+        ``even_light`` (trilinear between cell centres, clamped at the grid's edge; the three
+        grids on the normal's side by its squared components)."""
+        pts = np.asarray(points, np.float64).reshape(-1, 3)
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+        dims = np.array(self.dims)
+        g = np.clip((pts - self.origin) / self.cell, 0.5, dims - 0.5) - 0.5
+        base = np.minimum(np.floor(g).astype(np.int64), np.maximum(dims - 2, 0))
+        f = g - base
+        out = np.zeros(len(pts))
+        for axis in range(3):
+            bucket = np.where(nrm[:, axis] >= 0.0, 2 * axis, 2 * axis + 1)
+            for corner in range(8):
+                o = np.array([(corner >> a) & 1 for a in range(3)])
+                idx = np.minimum(base + o, dims - 1)
+                w = np.prod(np.where(o == 1, f, 1.0 - f), axis=1) * nrm[:, axis] ** 2
+                out += w * self.values[bucket, idx[:, 2], idx[:, 1], idx[:, 0]]
+        return out
+
+    def packed(self) -> np.ndarray:
+        """The grids as the shader reads them, (2 Z, Y, X, 4) float16: slab 0 holds
+        (+X, -X, +Y, -Y), slab 1 (+Z, -Z, 0, 0): two fetches a pixel."""
+        v = self.values
+        first = np.stack([v[0], v[1], v[2], v[3]], axis=-1)
+        second = np.stack([v[4], v[5], np.zeros_like(v[4]), np.zeros_like(v[4])], axis=-1)
+        return np.concatenate([first, second], axis=0).astype(np.float16)
+
+
+def cell_size(points: np.ndarray) -> float:
+    """Twice the points' median nearest-neighbour distance (about their spacing on a
+    surface), within ``CELL_M``."""
+    from scipy.spatial import cKDTree
+
+    if len(points) < 2:
+        return CELL_M[1]
+    dist, _ = cKDTree(points).query(points, k=2)
+    spacing = SPACINGS * float(np.median(dist[:, 1]))
+    if not math.isfinite(spacing):
+        return CELL_M[1]
+    return min(max(spacing, CELL_M[0]), CELL_M[1])
+
+
+AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+
+
+def build_field(
+    points: np.ndarray,
+    facing: np.ndarray,
+    values: np.ndarray,
+    levels: np.ndarray,
+    cell: float | None = None,
+) -> AmbientField | None:
+    """The field of faces at ``points`` facing ``facing`` (unit) with bounce light ``values``
+    (the radiance scale of a white surface), ``levels`` (6,) the one level of a surface
+    facing +X, -X, +Y, -Y, +Z, -Z where a cell is unsure; None when no face is usable (none,
+    or none finite)."""
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    nrm = np.asarray(facing, np.float64).reshape(-1, 3)
+    val = np.asarray(values, np.float64).reshape(-1)
+    ok = np.isfinite(pts).all(axis=1) & np.isfinite(nrm).all(axis=1) & np.isfinite(val)
+    ok &= val >= 0.0
+    pts, nrm, val = pts[ok], nrm[ok], val[ok]
+    if len(pts) == 0:
+        return None
+    c = float(cell) if cell is not None else cell_size(pts)
+    if not (math.isfinite(c) and c > 0.0):
+        raise ValueError(f"ambient field cell must be a positive length, not {cell!r}")
+    margin = SPREAD
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    while True:  # grow the cell until the grid fits
+        dims = np.maximum(np.ceil((hi - lo) / c + 2.0 * margin).astype(np.int64), 1)
+        if int(np.prod(dims)) <= MAX_CELLS:
+            break
+        c *= 1.25
+    origin = 0.5 * (lo + hi) - 0.5 * dims * c
+    flat_n = int(np.prod(dims))
+    h = (pts - origin) / c - 0.5  # in cell-centre units
+    base = np.floor(h).astype(np.int64)
+    reach = int(math.ceil(SPREAD))
+    steps = np.arange(-reach + 1, reach + 1)
+    offsets = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
+    idx = base[:, None, :] + offsets[None, :, :]  # (F, O, 3) the cells each face reaches
+    tent = np.prod(np.maximum(0.0, 1.0 - np.abs(h[:, None, :] - idx) / SPREAD), axis=2)
+    tent *= ((idx >= 0) & (idx < dims)).all(axis=2)
+    flat = (idx[..., 2] * dims[1] + idx[..., 1]) * dims[0] + idx[..., 0]
+    flat = np.clip(flat, 0, flat_n - 1)  # outside the grid: weight 0 anyway
+    share = nrm * nrm  # by the squared components (they sum to 1)
+    bucket_of = np.where(nrm >= 0.0, [0, 2, 4], [1, 3, 5])  # (F, 3)
+    keys = (bucket_of[:, :, None] * flat_n + flat[:, None, :]).ravel()  # (F, 3, O)
+    w = (share[:, :, None] * tent[:, None, :]).ravel()
+    wv = w * np.repeat(val, 3 * len(offsets))
+    weight = np.bincount(keys, w, BUCKETS * flat_n).reshape(BUCKETS, flat_n)
+    total = np.bincount(keys, wv, BUCKETS * flat_n).reshape(BUCKETS, flat_n)
+    sure = np.minimum(weight / FULL_WEIGHT, 1.0)
+    mean = np.divide(total, weight, out=np.zeros_like(total), where=weight > 0.0)
+    level = np.asarray(levels, np.float64).reshape(BUCKETS, 1)
+    out = (mean * sure + (1.0 - sure) * level).astype(np.float32)
+    out = out.reshape(BUCKETS, int(dims[2]), int(dims[1]), int(dims[0]))
+    return AmbientField(origin, c, (int(dims[0]), int(dims[1]), int(dims[2])), out, len(pts))

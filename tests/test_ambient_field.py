@@ -1,0 +1,157 @@
+"""The even light by place (app/ambient_field.py, ``render.ambient_by_place``): the probe's
+faces kept on a grid, read back where they were found, the one level where none were, covered
+faces left out, and the frame shades with it as the CPU twin says."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.ambient import AmbientProbe, estimate_ambient
+from app.ambient_field import AXES, build_field
+from app.camera import StereoCamera
+from app.frame import FrameInput
+from app.scene import Material, PointLight, Viewpoint
+from app.settings import Settings
+from render.offscreen import OffscreenHost
+from tests.test_ambient import _env_brdf
+from tests.test_photons import HALF, _box, _quad
+
+LEVELS = np.full(6, 0.2)
+
+
+def _floor_faces(n: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """A 4 m x 4 m floor of faces looking up, on a grid."""
+    g = np.linspace(-2.0, 2.0, n)
+    x, z = np.meshgrid(g, g)
+    pts = np.stack([x.ravel(), np.zeros(x.size), z.ravel()], axis=1)
+    return pts, np.tile([0.0, 1.0, 0.0], (len(pts), 1))
+
+
+def test_the_field_gives_back_what_was_found_where_it_was_found():
+    """A floor whose bounce light rises from 0.1 to 0.5 across it: read back in its middle,
+    the field rises with it (a linear ramp survives the tent), and the two halves differ."""
+    pts, up = _floor_faces()
+    values = 0.3 + 0.1 * pts[:, 0]  # 0.1 at x = -2, 0.5 at x = +2
+    field = build_field(pts, up, values, LEVELS, cell=0.25)
+    assert field is not None
+    probe = np.array([[-1.0, 0.02, 0.0], [0.0, 0.02, 0.0], [1.0, 0.02, 0.0]])
+    got = field.lookup(probe, np.tile([0.0, 1.0, 0.0], (3, 1)))
+    assert got == pytest.approx([0.2, 0.3, 0.4], abs=0.01)
+
+
+def test_where_no_face_looks_that_way_the_one_level_stands_in():
+    """Looking down over an up-facing floor, or far from every face: the level of that
+    direction, not black."""
+    pts, up = _floor_faces()
+    levels = np.array([0.11, 0.12, 0.13, 0.14, 0.15, 0.16])
+    field = build_field(pts, up, np.full(len(pts), 0.5), levels, cell=0.25)
+    assert field is not None
+    down = field.lookup(np.array([[0.0, 0.02, 0.0]]), np.array([[0.0, -1.0, 0.0]]))
+    assert down[0] == pytest.approx(0.14)
+    far = field.lookup(np.array([[0.0, 0.02, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
+    assert far[0] == pytest.approx(0.11)
+    tilted = np.array([[0.0, 0.6, 0.8]])  # 36 % up (0.5), 64 % +Z (0.15)
+    got = field.lookup(np.array([[0.0, 0.02, 0.0]]), tilted)
+    assert got[0] == pytest.approx(0.36 * 0.5 + 0.64 * 0.15, abs=1e-6)
+
+
+def test_bad_faces_are_left_out_and_none_gives_no_field():
+    pts, up = _floor_faces(4)
+    values = np.full(len(pts), 0.4)
+    values[0] = np.nan
+    values[1] = -1.0
+    pts[2] = np.inf
+    field = build_field(pts, up, values, LEVELS)
+    assert field is not None and field.faces == len(pts) - 3
+    assert np.isfinite(field.values).all()
+    assert build_field(pts[:0], up[:0], values[:0], LEVELS) is None
+    with pytest.raises(ValueError):
+        build_field(pts, up, values, LEVELS, cell=0.0)
+
+
+def test_a_rug_covers_the_floor_under_it():
+    """The floor's faces under a slab lying on it see the slab 1 cm away in every direction:
+    covered, so they do not pull the floor's field down; the open floor is not."""
+    rug = _quad(
+        "rug",
+        np.array(
+            [
+                [-1, -HALF[1] + 0.01, -1],
+                [1, -HALF[1] + 0.01, -1],
+                [1, -HALF[1] + 0.01, 1],
+                [-1, -HALF[1] + 0.01, 1],
+            ],
+            float,
+        ),
+        np.array([0.0, 1.0, 0.0]),
+        0,
+    )
+    scene = _box(0.5, [PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)], [rug])
+    probe = AmbientProbe(scene)
+    p = probe.points
+    on_floor = np.abs(p[:, 1] + HALF[1]) < 1e-4
+    under = on_floor & (np.abs(p[:, 0]) < 0.8) & (np.abs(p[:, 2]) < 0.8)
+    open_floor = on_floor & ((np.abs(p[:, 0]) > 1.3) | (np.abs(p[:, 2]) > 1.3))
+    assert under.sum() > 10 and open_floor.sum() > 10
+    inner = 2 * np.flatnonzero(under) + (probe.normal[under, 1] < 0)  # the face looking up
+    assert probe.covered[inner].mean() > 0.9
+    inner_open = 2 * np.flatnonzero(open_floor) + (probe.normal[open_floor, 1] < 0)
+    assert probe.covered[inner_open].mean() < 0.05
+
+
+def test_a_lamp_by_one_wall_lights_that_end_of_the_room_more():
+    """A lamp near one end of a long box: the estimate's field is brighter on the floor at
+    that end than at the other, where the one level is the same at both."""
+    lamp = PointLight((0.0, 0.0, -HALF[2] + 0.4), (1.0, 1.0, 1.0), 8.0, 1e4)
+    est = estimate_ambient(_box(0.5, [lamp]))
+    assert est.by_place is not None
+    y = -HALF[1] + 0.01
+    near, far = est.by_place.lookup(
+        np.array([[0.0, y, -HALF[2] + 0.8], [0.0, y, HALF[2] - 0.8]]),
+        np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]]),
+    )
+    assert near > 1.3 * far > 0.0
+    assert far < est.along((0.0, 1.0, 0.0)) < near
+
+
+def _centre(s: Settings, scene) -> tuple[float, np.ndarray]:
+    """The left eye's luminance at its centre pixel and the wall point it shows."""
+    with OffscreenHost(160, 90, s) as host:
+        host.set_scene(scene)
+        cam = StereoCamera(s.stereo)
+        cam.set_pose(scene.spawn.position, 0.0, 0.0)
+        eyes = cam.eyes(*host.eye_size)
+        host.draw(FrameInput(eyes, gaze=(0.5, 0.5)))
+        hdr = host.read_hdr(0)[:, :, :3]
+    h, w = hdr.shape[:2]
+    lum = hdr[h // 2 - 1 : h // 2 + 1, w // 2 - 1 : w // 2 + 1] @ [0.2126, 0.7152, 0.0722]
+    eye = np.asarray(eyes[0].position, np.float64)
+    return float(lum.mean()), np.array([eye[0], eye[1], -HALF[2]])
+
+
+def test_the_frame_shades_with_the_field_as_its_cpu_twin_says():
+    """The wall straight ahead: with the field, brighter than with the one level by what
+    reflects x (field there - level) says."""
+    scene = _box(0.5, [PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)])
+    scene.spawn = Viewpoint((0.0, 0.0, 1.5))
+    s = Settings()
+    s.set("render.ambient_by_place", False)
+    level_lum, _ = _centre(s, scene)
+    s.set("render.ambient_by_place", True)
+    field_lum, at = _centre(s, scene)
+    est = estimate_ambient(scene)
+    toward = np.array([[0.0, 0.0, 1.0]])
+    here = float(est.by_place.lookup(at[None, :], toward)[0])
+    x, y = _env_brdf(scene.materials[0].roughness, 1.0)
+    reflects = 0.5 + 0.04 * x + y
+    want = reflects * (here - est.along((0.0, 0.0, 1.0)))
+    assert abs(want) > 0.005  # the wall ahead is not at the mean
+    # half floats: the HDR target's step is 5e-4 at these levels, the field's a tenth of it
+    assert field_lum - level_lum == pytest.approx(want, abs=1.2e-3)
+
+
+def test_the_axes_are_the_six_grids():
+    assert AXES.shape == (6, 3)
+    assert (np.abs(AXES).sum(axis=1) == 1).all()
+    assert Material  # the test module's imports used
