@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -87,11 +88,12 @@ class EyeView:
     near: float
     far: float
 
-    @property
+    @cached_property
     def view_projection(self) -> np.ndarray:
+        # Worked out once: the passes ask for it about a hundred times a frame (each draw).
         return self.projection @ self.view
 
-    @property
+    @cached_property
     def inverse_view_projection(self) -> np.ndarray:
         # Factor by factor: inverting the product directly loses precision far from the origin.
         return np.linalg.inv(self.view) @ np.linalg.inv(self.projection)

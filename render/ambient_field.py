@@ -11,7 +11,7 @@ import numpy as np
 
 from app.ambient_field import AmbientField
 from render.constants import TEXTURE_UNITS
-from render.pass_graph import set_uniforms, uniform
+from render.pass_graph import has, set_uniforms, uniform
 
 
 class GpuAmbientField:
@@ -36,7 +36,7 @@ def bind_field(
     prog: moderngl.Program | moderngl.ComputeShader, field: GpuAmbientField | None
 ) -> None:
     """Bind ``field`` for ``prog``'s AMBIENT_FIELD variant (other variants have no field)."""
-    if field is None or "u_ambient_field" not in prog:
+    if field is None or not has(prog, "u_ambient_field"):
         return
     unit = TEXTURE_UNITS["ambient_field"]
     uniform(prog, "u_ambient_field").value = unit

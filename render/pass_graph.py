@@ -158,6 +158,12 @@ class Resources:
         return getattr(getattr(self, table)[index], attr)
 
 
+def has(prog: moderngl.Program | moderngl.ComputeShader, name: str) -> bool:
+    """Whether ``prog`` has a member ``name``: one dictionary lookup (moderngl's Program has
+    no ``__contains__``, so ``name in prog`` walks every member, about 4,600 steps a frame)."""
+    return prog.get(name, None) is not None
+
+
 def uniform(prog: moderngl.Program | moderngl.ComputeShader, name: str) -> moderngl.Uniform:
     """The uniform ``name`` of ``prog`` (a KeyError when the program has none). moderngl types
     ``prog[name]`` as any member (uniform, block, attribute, varying); the names passed here
@@ -174,7 +180,7 @@ def bind_texture(
     """Bind ``tex`` to TEXTURE_UNITS[name] and point sampler ``u_<name>`` at it. ``optional``:
     the variant may not have the sampler (then nothing is bound and False is returned)."""
     sampler = "u_" + name
-    if sampler not in prog:
+    if not has(prog, sampler):
         if optional:
             return False
         raise UniformError(f"shader has no sampler {sampler}")
@@ -198,7 +204,7 @@ def set_uniforms(
     variant does not have it). bytes and 4x4 matrices are written, the rest set as values."""
     for group, required in ((values, True), (optional or {}, False)):
         for name, value in group.items():
-            if name not in prog:
+            if not has(prog, name):
                 if required:
                     raise UniformError(f"shader has no uniform {name}")
                 continue
@@ -227,6 +233,7 @@ class RenderPass(ABC):
         self.enabled = True  # the renderer sets it from configure()
         self._query = ctx.query(time=True)
         self.last_ms = 0.0
+        self._timed = False  # run() timed this frame's work, collect() not yet read it
         self.samples = 0  # shaded samples in the last frame, where the pass knows them
         self._fullscreen_vaos: dict[int, moderngl.VertexArray] = {}
 
@@ -237,10 +244,19 @@ class RenderPass(ABC):
     def run(self, frame: FrameContext) -> None:
         if not self.enabled:
             self.last_ms = 0.0
+            self._timed = False
             return
         with self._query:
             self.execute(frame, self.res)
-        self.last_ms = self._query.elapsed / 1e6
+        self._timed = True  # its time is read by collect(), once the whole frame is submitted
+
+    def collect(self) -> None:
+        """This frame's GPU time of the pass (``last_ms``). Read after every pass of the frame
+        is submitted: reading a timer waits for its pass to finish, so reading each one as it
+        ends made the CPU wait for every pass before it could submit the next."""
+        if self._timed:
+            self._timed = False
+            self.last_ms = self._query.elapsed / 1e6
 
     @abstractmethod
     def execute(self, frame: FrameContext, res: Resources) -> None:

@@ -28,6 +28,7 @@ from render.pass_graph import (
     Resources,
     bind_image,
     bind_texture,
+    has,
     release_query,
     set_uniforms,
     uniform,
@@ -144,7 +145,7 @@ def _draw_meshes(
             defines["TCR_TINT"] = frame.tint
         prog = shaders.program("geometry.vert.glsl", fragment, defines)
         uniform(prog, "u_view_projection").write(gl_bytes(eye.view_projection))
-        if "u_eye" in prog:  # the forward and blend paths: they light the fragments themselves
+        if has(prog, "u_eye"):  # the forward and blend paths: they light the fragments themselves
             uniform(prog, "u_eye").value = tuple(eye.position)
             scene_uniforms(prog, frame)
             if sky is not None:

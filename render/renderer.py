@@ -546,6 +546,8 @@ class Renderer:
             except Exception as exc:  # noqa: BLE001 - one bad pass must not kill the app
                 self._log_once(p.name, exc)
             res.wrote(p.writes)
+        for p in enabled:  # the timers, once every pass is submitted (RenderPass.collect)
+            p.collect()
         self.frames += 1
 
     def cps_stats(self) -> dict:
@@ -601,6 +603,7 @@ class Renderer:
         ctx.view_size = (eye.width, eye.height)
         self.resources.begin_frame(self.targets)
         self.ids.run(ctx)
+        self.ids.collect()
         return self.ids.result
 
     def _log_once(self, name: str, exc: Exception) -> None:

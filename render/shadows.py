@@ -339,6 +339,7 @@ class ShadowPass(RenderPass):
         super().run(frame)
         if self.updates:
             self.ctx.finish()
+            self._timed = False  # the clock's reading stands, not the query's
             self.last_ms = (time.perf_counter() - start) * 1000.0
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
