@@ -7,8 +7,8 @@ data; emissive: sRGB) are uploaded once with hardware mipmaps. A mesh carries a 
 attribute only when its material has a normal map. ``release()`` frees everything it made.
 
 The material of one mesh reaches a shader through two calls, for every pass that draws meshes
-(G-buffer, forward, blend, ids, and the shadow maps' depth passes): ``material_defines(mesh)``
-picks the program variant (``alpha_mask_defines`` for depth-only passes, with
+(G-buffer, forward, blend, ids, and the shadow maps' depth passes):
+``render.materials.material_defines(mesh)`` picks the program variant (``alpha_mask_defines`` for depth-only passes, with
 ``shaders/alpha_mask.glsl``) and ``GpuScene.bind_material(prog, index)`` sets its uniforms and
 textures (units from ``render.constants.TEXTURE_UNITS``).
 
@@ -38,6 +38,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -59,6 +60,7 @@ from render.culling import (
     triangles_by_error,
     visible_ranges,
 )
+from render.materials import factor_writes
 from render.texture_stream import TextureStreamer
 
 log = logging.getLogger(__name__)
@@ -136,30 +138,6 @@ class GpuGroup:
         return Chunks(c.first[:, a:b], c.count[:, a:b], c.error[:, a:b], c.lo[a:b], c.hi[a:b])
 
 
-def material_defines(mesh: GpuMesh | GpuGroup) -> dict[str, object]:
-    """The material.glsl variant for one mesh: which maps it samples, its alpha mode."""
-    maps = mesh.maps or {}
-    mode = mesh.material.alpha_mode
-    extra = {
-        "HAS_TANGENTS": mesh.tangents and "normal_map" in maps,
-        "HAS_MR_MAP": "mr_map" in maps,
-        "HAS_OCCLUSION_MAP": "occlusion_map" in maps,
-        "HAS_EMISSIVE_MAP": "emissive_map" in maps,
-        "ALPHA_MASK": mode == "MASK",
-        "ALPHA_BLEND": mode == "BLEND",
-    }
-    # Only the features it has: a plain material is the variant the renderer warms up.
-    return {"HAS_TEXTURE": mesh.texture is not None, **{k: True for k, v in extra.items() if v}}
-
-
-def alpha_mask_defines(mesh: GpuMesh | GpuGroup) -> dict[str, object]:
-    """The variant for a depth-only pass (ids, shadow maps) with ``alpha_mask.glsl``: only a
-    MASK material needs its base colour texture there."""
-    if mesh.material.alpha_mode != "MASK":
-        return {}
-    return {"ALPHA_MASK": True, "HAS_TEXTURE": mesh.texture is not None}
-
-
 class GpuScene:
     def __init__(
         self,
@@ -182,6 +160,8 @@ class GpuScene:
         self.streamer = TextureStreamer(ctx, streamed, anisotropy=anisotropy, stream_in=stream_in)
         self.anisotropy = anisotropy
         self._maps: dict[tuple[int, bool], moderngl.Texture] = {}
+        # program -> id(material) -> (material, its factors' uniforms and bytes): _bind
+        self._factor_writes: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
         self.meshes: list[GpuMesh] = []
         vertex_data: list[np.ndarray] = []  # each mesh's interleaved vertices (for merging)
         index_data: list[np.ndarray] = []  # and its drawing-order indices (every level)
@@ -441,22 +421,19 @@ class GpuScene:
     def _bind(
         self, prog: moderngl.Program, mesh: GpuMesh | GpuGroup, names: tuple[str, ...] | None
     ) -> None:
-        from render.pass_graph import bind_texture, set_uniforms  # it imports this module
+        from render.pass_graph import bind_texture  # it imports this module
 
         mat = mesh.material
-        set_uniforms(
-            prog,
-            {},
-            optional={
-                "u_base_color": tuple(mat.base_color),
-                "u_roughness": mat.roughness,
-                "u_metallic": mat.metallic,
-                "u_emissive": tuple(mat.emissive),
-                "u_normal_scale": mat.normal_scale,
-                "u_occlusion_strength": mat.occlusion_strength,
-                "u_alpha_cutoff": mat.alpha_cutoff,
-            },
-        )
+        # The factors as bytes, per program and material, packed once (the G-buffer binds a
+        # material for every draw of both eyes: ~250 draws a frame in a 62-material room).
+        by_material = self._factor_writes.get(prog)
+        if by_material is None:
+            by_material = self._factor_writes[prog] = {}
+        writes = by_material.get(id(mat))
+        if writes is None or writes[0] is not mat:
+            writes = by_material[id(mat)] = (mat, factor_writes(prog, mat))
+        for member, data in writes[1]:
+            member.write(data)
         if mesh.texture is not None and (names is None or "albedo" in names):
             bind_texture(prog, "albedo", self.streamer.resident[mesh.texture].tex, optional=True)
         for sampler, tex in (mesh.maps or {}).items():

@@ -21,7 +21,7 @@ from render.constants import (
     LIGHT_TILE,
     MAX_PER_TILE,
 )
-from render.gpu_scene import alpha_mask_defines, material_defines
+from render.materials import alpha_mask_defines, material_defines
 from render.pass_graph import (
     FrameContext,
     RenderPass,
