@@ -9,8 +9,9 @@ attribute only when its material has a normal map. ``release()`` frees everythin
 The material of one mesh reaches a shader through two calls, for every pass that draws meshes
 (G-buffer, forward, blend, ids, and the shadow maps' depth passes):
 ``render.materials.material_defines(mesh)`` picks the program variant (``alpha_mask_defines``
-for depth-only passes, with ``shaders/alpha_mask.glsl``) and ``GpuScene.bind_material(prog, index)`` sets its uniforms and
-textures (units from ``render.constants.TEXTURE_UNITS``).
+for depth-only passes, with ``shaders/alpha_mask.glsl``) and
+``GpuScene.bind_material(prog, index)`` sets its uniforms and textures (units from
+``render.constants.TEXTURE_UNITS``).
 
 Merged meshes (``GpuScene(merge=True)``, the renderer's default): real interiors hold a
 thousand meshes or more, and on a software rasteriser each draw call (its program, uniforms,
