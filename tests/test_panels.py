@@ -48,7 +48,7 @@ def test_controls_come_from_the_metadata(settings, qtbot):
     lighting = form.control("render.lighting")
     assert isinstance(lighting, QComboBox)
     assert [lighting.itemData(i) for i in range(lighting.count())] == ["compute", "fragment"]
-    assert lighting.currentText() == "Compute shader (the CPS paper's)"  # the choice's label
+    assert lighting.currentText() == "Graphics pipeline (fragment shader)"  # the choice's label
     f = form.control("tcr.f_m")
     assert f.minimum() == pytest.approx(0.01)  # the model's 1e-6, rounded up to what it shows
     assert setting_label(settings, "tcr.f_m") == "Eye-to-screen distance"
