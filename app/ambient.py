@@ -84,6 +84,7 @@ CREASE_M = (
     0.75  # a ray that ends this close met a nearby surface (the AO reach, render.ao_radius_m)
 )
 BOUNCES = 48  # bounces summed; the rest as a geometric tail
+CHROMA_BOUNCES = 6  # bounces followed in colour (the colour settles after a few)
 SEED = 14
 #: A bounce keeps at most this share (a white closed box would otherwise diverge).
 MAX_KEPT = 0.95
@@ -182,7 +183,8 @@ class AmbientProbe:
             return
         normal = cross / np.maximum(length, 1e-30)[:, None]
         rho_mesh, _emit = _mesh_optics(scene, [])
-        rho = rho_mesh[owner] @ LUMA
+        rho_rgb = rho_mesh[owner]
+        rho = rho_rgb @ LUMA
         self.mean_albedo = float((rho * area).sum() / area.sum())
 
         rng = np.random.default_rng(seed)
@@ -196,6 +198,7 @@ class AmbientProbe:
         )
         self.normal = normal[pick]
         self.rho = rho[pick]
+        self.rho_rgb = rho_rgb[pick]  # the colour the bounce takes (app.ambient_field chroma)
         diag = float(np.linalg.norm(tris.reshape(-1, 3).max(0) - tris.reshape(-1, 3).min(0)))
         self.eps = 1e-4 * max(diag, 1e-3)
         self._tree = cKDTree(self.points)
@@ -356,7 +359,9 @@ class AmbientProbe:
                 self.eps,
             )
             sun_hits = lit.reshape(gain.shape)
-        first = (gain * (e0[face] + sun_hits)).sum(axis=1) / GATHER_RAYS
+        arriving = e0[face] + sun_hits
+        first = (gain * arriving).sum(axis=1) / GATHER_RAYS
+        chroma = self._chroma(hit, face, arriving)
         e0 = e0 + e0_suns
         total = first.copy()
         e = first
@@ -394,11 +399,25 @@ class AmbientProbe:
             gradient,
             (float(mean_n[0]), float(mean_n[1]), float(mean_n[2])),
             _occluder_return(self.crease, self.rho[np.arange(2 * n) // 2], e0, total, c),
-            self._by_place(total, c, indirect + (AXES - mean_n) @ np.asarray(gradient)),
+            self._by_place(total, c, indirect + (AXES - mean_n) @ np.asarray(gradient), chroma),
         )
 
+    def _chroma(self, hit: np.ndarray, face: np.ndarray, arriving: np.ndarray) -> np.ndarray:
+        """Each face's bounce light's colour (2 n, 3), its luminance 1: the first
+        ``CHROMA_BOUNCES`` bounces in colour, the surfaces' reflectance taking their colour
+        (the lamps' and the sun's light as white: a wooden floor warms the ceiling)."""
+        gain = np.where(hit[..., None], self.rho_rgb[face // 2], 0.0)  # (2 n, rays, 3)
+        e = (gain * arriving[..., None]).sum(axis=1) / GATHER_RAYS
+        total = e.copy()
+        for _ in range(CHROMA_BOUNCES - 1):
+            e = (gain * e[face]).sum(axis=1) / GATHER_RAYS
+            total += e
+        lum = total @ LUMA
+        grey = np.ones(3)
+        return np.where(lum[:, None] > 1e-12, total / np.maximum(lum, 1e-12)[:, None], grey)
+
     def _by_place(
-        self, total: np.ndarray, closure: np.ndarray, levels: np.ndarray
+        self, total: np.ndarray, closure: np.ndarray, levels: np.ndarray, chroma: np.ndarray
     ) -> AmbientField | None:
         """The faces' own bounce light on a grid (app.ambient_field): those that see the
         scene and have nothing lying on them."""
@@ -410,7 +429,12 @@ class AmbientProbe:
             self._cell = cell_size(self.points)
         level = np.maximum(levels, 0.0)  # AmbientEstimate.along the six axes
         return build_field(
-            self.points[faces // 2], facing, total[faces] / math.pi, level, self._cell
+            self.points[faces // 2],
+            facing,
+            total[faces] / math.pi,
+            level,
+            self._cell,
+            chroma[faces],
         )
 
 

@@ -42,6 +42,7 @@ CELL_M = (0.1, 2.0)  # the cell's edge, metres, at least and at most
 MAX_CELLS = 1 << 17  # per direction grid (the cell grows beyond): 6 x 1 MB at most
 COVERED_M = 0.05  # a ray that ends this close met something lying on the face
 COVERED_SHARE = 0.5  # a face is covered when this share of its rays end that close
+LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,9 @@ class AmbientField:
     dims: tuple[int, int, int]  # cells along x, y, z
     values: np.ndarray
     faces: int  # faces spread into it
+    # (Z, Y, X, 3) the bounce light's colour per cell, its luminance 1 (grey where none was
+    # found): one for every way of facing (a wooden floor warms the ceiling above it).
+    chroma: np.ndarray | None = None
 
     @property
     def nbytes(self) -> int:
@@ -83,13 +87,38 @@ class AmbientField:
                 out += w * self.values[bucket, idx[:, 2], idx[:, 1], idx[:, 0]]
         return out
 
+    def colour_at(self, points: np.ndarray) -> np.ndarray:
+        """The bounce light's colour (M, 3) at world ``points`` (luminance 1), as the shader
+        interpolates it (red and blue stored, green from the luminance)."""
+        pts = np.asarray(points, np.float64).reshape(-1, 3)
+        if self.chroma is None:
+            return np.ones((len(pts), 3))
+        dims = np.array(self.dims)
+        g = np.clip((pts - self.origin) / self.cell, 0.5, dims - 0.5) - 0.5
+        base = np.minimum(np.floor(g).astype(np.int64), np.maximum(dims - 2, 0))
+        f = g - base
+        rb = np.zeros((len(pts), 2))
+        for corner in range(8):
+            o = np.array([(corner >> a) & 1 for a in range(3)])
+            idx = np.minimum(base + o, dims - 1)
+            w = np.prod(np.where(o == 1, f, 1.0 - f), axis=1)
+            rb += w[:, None] * self.chroma[idx[:, 2], idx[:, 1], idx[:, 0]][:, [0, 2]]
+        return _with_green(rb[:, 0], rb[:, 1])
+
     def packed(self) -> np.ndarray:
         """The grids as the shader reads them, (2 Z, Y, X, 4) float16: slab 0 holds
-        (+X, -X, +Y, -Y), slab 1 (+Z, -Z, 0, 0): two fetches a pixel."""
+        (+X, -X, +Y, -Y), slab 1 (+Z, -Z, red, blue of the colour): two fetches a pixel."""
         v = self.values
+        c = self.chroma if self.chroma is not None else np.ones((*v.shape[1:], 3))
         first = np.stack([v[0], v[1], v[2], v[3]], axis=-1)
-        second = np.stack([v[4], v[5], np.zeros_like(v[4]), np.zeros_like(v[4])], axis=-1)
+        second = np.stack([v[4], v[5], c[..., 0], c[..., 2]], axis=-1)
         return np.concatenate([first, second], axis=0).astype(np.float16)
+
+
+def _with_green(red: np.ndarray, blue: np.ndarray) -> np.ndarray:
+    """A colour of luminance 1 from its red and blue (shading.glsl even_light does the same)."""
+    green = np.maximum((1.0 - LUMA[0] * red - LUMA[2] * blue) / LUMA[1], 0.0)
+    return np.stack([red, green, blue], axis=1)
 
 
 def cell_size(points: np.ndarray) -> float:
@@ -115,17 +144,19 @@ def build_field(
     values: np.ndarray,
     levels: np.ndarray,
     cell: float | None = None,
+    chroma: np.ndarray | None = None,
 ) -> AmbientField | None:
     """The field of faces at ``points`` facing ``facing`` (unit) with bounce light ``values``
     (the radiance scale of a white surface), ``levels`` (6,) the one level of a surface
     facing +X, -X, +Y, -Y, +Z, -Z where a cell is unsure; None when no face is usable (none,
-    or none finite)."""
+    or none finite). ``chroma`` (F, 3): each face's bounce colour of luminance 1 (None: grey)."""
     pts = np.asarray(points, np.float64).reshape(-1, 3)
     nrm = np.asarray(facing, np.float64).reshape(-1, 3)
     val = np.asarray(values, np.float64).reshape(-1)
+    col = np.ones((len(pts), 3)) if chroma is None else np.asarray(chroma, np.float64)
     ok = np.isfinite(pts).all(axis=1) & np.isfinite(nrm).all(axis=1) & np.isfinite(val)
-    ok &= val >= 0.0
-    pts, nrm, val = pts[ok], nrm[ok], val[ok]
+    ok &= (val >= 0.0) & np.isfinite(col).all(axis=1) & (col >= 0.0).all(axis=1)
+    pts, nrm, val, col = pts[ok], nrm[ok], val[ok], col[ok]
     if len(pts) == 0:
         return None
     c = float(cell) if cell is not None else cell_size(pts)
@@ -157,9 +188,23 @@ def build_field(
     wv = w * np.repeat(val, 3 * len(offsets))
     weight = np.bincount(keys, w, BUCKETS * flat_n).reshape(BUCKETS, flat_n)
     total = np.bincount(keys, wv, BUCKETS * flat_n).reshape(BUCKETS, flat_n)
+    # The colour, one per cell: the faces' colours weighted by the light they bring.
+    cells = flat.ravel()
+    light = (tent * val[:, None]).ravel()
+    lit = np.bincount(cells, light, flat_n)
+    colour = np.stack(
+        [
+            np.bincount(cells, light * np.repeat(col[:, ch], len(offsets)), flat_n)
+            for ch in range(3)
+        ],
+        axis=1,
+    )
+    colour = np.where(lit[:, None] > 1e-12, colour / np.maximum(lit, 1e-12)[:, None], 1.0)
     sure = np.minimum(weight / FULL_WEIGHT, 1.0)
     mean = np.divide(total, weight, out=np.zeros_like(total), where=weight > 0.0)
     level = np.asarray(levels, np.float64).reshape(BUCKETS, 1)
     out = (mean * sure + (1.0 - sure) * level).astype(np.float32)
     out = out.reshape(BUCKETS, int(dims[2]), int(dims[1]), int(dims[0]))
-    return AmbientField(origin, c, (int(dims[0]), int(dims[1]), int(dims[2])), out, len(pts))
+    colour = colour.reshape(int(dims[2]), int(dims[1]), int(dims[0]), 3).astype(np.float32)
+    shape = (int(dims[0]), int(dims[1]), int(dims[2]))
+    return AmbientField(origin, c, shape, out, len(pts), colour)

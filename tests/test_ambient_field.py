@@ -11,11 +11,11 @@ from app.ambient import AmbientProbe, estimate_ambient
 from app.ambient_field import AXES, build_field
 from app.camera import StereoCamera
 from app.frame import FrameInput
-from app.scene import Material, PointLight, Viewpoint
+from app.scene import Material, PointLight, Scene, Viewpoint
 from app.settings import Settings
 from render.offscreen import OffscreenHost
 from tests.test_ambient import _env_brdf
-from tests.test_photons import HALF, _box, _quad
+from tests.test_photons import HALF, _box, _box_walls, _quad
 
 LEVELS = np.full(6, 0.2)
 
@@ -155,3 +155,52 @@ def test_the_axes_are_the_six_grids():
     assert AXES.shape == (6, 3)
     assert (np.abs(AXES).sum(axis=1) == 1).all()
     assert Material  # the test module's imports used
+
+
+def test_a_red_floor_warms_the_ceiling_above_it():
+    """A white box with a red floor under a lamp: the bounce light the field gives the ceiling
+    is red (more red than blue), its luminance kept; with a grey floor it is grey."""
+
+    def ceiling_colour(floor_rgb) -> np.ndarray:
+        est = estimate_ambient(_floored(floor_rgb))
+        assert est.by_place is not None
+        return est.by_place.colour_at(np.array([[0.0, HALF[1] - 0.01, 0.0]]))[0]
+
+    red = ceiling_colour((0.8, 0.1, 0.1))
+    grey = ceiling_colour((0.5, 0.5, 0.5))
+    assert red[0] > 1.5 * red[2]
+    assert float(red @ [0.2126, 0.7152, 0.0722]) == pytest.approx(1.0, abs=0.02)
+    assert grey == pytest.approx([1.0, 1.0, 1.0], abs=0.03)
+
+
+def _floored(floor_rgb) -> Scene:
+    """A white box under a lamp near its ceiling, its floor of colour ``floor_rgb``."""
+    walls = _box_walls()
+    mats = [Material("white", (0.8, 0.8, 0.8, 1.0)), Material("floor", (*floor_rgb, 1.0))]
+    for m in walls:
+        m.material = 1 if m.name == "wall1-1" else 0  # the floor
+    lamp = PointLight((0.0, HALF[1] - 0.4, 0.0), (1.0, 1.0, 1.0), 8.0, 1e4)
+    scene = Scene("room", walls, mats, lights=[lamp])
+    scene.spawn = Viewpoint((0.0, 0.0, 0.0))
+    return scene
+
+
+def test_the_frame_shows_the_ceiling_warmed_by_the_red_floor():
+    """Looking up at that ceiling: red over blue higher with the field (the bounce light's
+    colour) than with the one level (grey)."""
+    scene = _floored((0.8, 0.1, 0.1))
+
+    def red_over_blue(by_place: bool) -> float:
+        s = Settings()
+        s.set("render.ambient_by_place", by_place)
+        with OffscreenHost(160, 90, s) as host:
+            host.set_scene(scene)
+            cam = StereoCamera(s.stereo)
+            cam.set_pose(scene.spawn.position, 0.0, 80.0)
+            host.draw(FrameInput(cam.eyes(*host.eye_size), gaze=(0.5, 0.5)))
+            hdr = host.read_hdr(0)[:, :, :3].astype(np.float64)
+        h, w = hdr.shape[:2]
+        centre = hdr[h // 2 - 4 : h // 2 + 4, w // 2 - 4 : w // 2 + 4].reshape(-1, 3).mean(axis=0)
+        return float(centre[0] / centre[2])
+
+    assert red_over_blue(True) > red_over_blue(False) * 1.05

@@ -42,20 +42,23 @@ uniform vec4 u_af_origin_cell;
 uniform ivec3 u_af_dims;
 
 // The bounce light at P for normal N: the three grids on N's side, trilinear, by N's squared
-// components (AmbientField.lookup is the CPU twin).
-float even_light(vec3 P, vec3 N, float level) {
+// components, in the colour found there (red and blue stored, green from the luminance;
+// AmbientField.lookup and colour_at are the CPU twins).
+vec3 even_light(vec3 P, vec3 N, float level) {
     vec3 dims = vec3(u_af_dims);
     vec3 g = clamp((P - u_af_origin_cell.xyz) / u_af_origin_cell.w, vec3(0.5), dims - 0.5);
     vec2 xy = g.xy / dims.xy;
     vec4 a = textureLod(u_ambient_field, vec3(xy, g.z / (2.0 * dims.z)), 0.0);
-    vec2 b = textureLod(u_ambient_field, vec3(xy, (g.z + dims.z) / (2.0 * dims.z)), 0.0).rg;
+    vec4 b = textureLod(u_ambient_field, vec3(xy, (g.z + dims.z) / (2.0 * dims.z)), 0.0);
     vec3 n2 = N * N;
-    return n2.x * (N.x >= 0.0 ? a.r : a.g) + n2.y * (N.y >= 0.0 ? a.b : a.a)
-           + n2.z * (N.z >= 0.0 ? b.r : b.g);
+    float lum = n2.x * (N.x >= 0.0 ? a.r : a.g) + n2.y * (N.y >= 0.0 ? a.b : a.a)
+                + n2.z * (N.z >= 0.0 ? b.r : b.g);
+    float green = max((1.0 - 0.2126 * b.b - 0.0722 * b.a) / 0.7152, 0.0);
+    return lum * vec3(b.b, green, b.a);
 }
 #else
-float even_light(vec3 P, vec3 N, float level) {
-    return level;
+vec3 even_light(vec3 P, vec3 N, float level) {
+    return vec3(level);
 }
 #endif
 #include "sky.glsl"
@@ -116,7 +119,7 @@ vec3 shade(vec3 P, vec3 N, vec3 V, vec3 albedo, float roughness, float metallic)
     vec3 occlusion = occluded_share(material_occlusion() * ambient_occlusion(), albedo);
     vec2 env = env_brdf(roughness, clamp(dot(N, V), 0.0, 1.0));
     vec3 even = diffuse_color + spec_color * env.x + env.y;
-    float level = even_light(P, N, max(u_ambient + dot(u_ambient_gradient, N), 0.0));
+    vec3 level = even_light(P, N, max(u_ambient + dot(u_ambient_gradient, N), 0.0));
     vec3 sum = (level * even + sky_ambient(N, albedo)) * occlusion;
 #ifdef TILED_LIGHTS
     uint tile_count = texelFetch(u_tile_counts, g_tile, 0).r;
