@@ -34,6 +34,7 @@ light, not noise); 70-140 kB. Built with the estimate, each time the lights or t
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,55 +66,46 @@ class AmbientField:
     faces: int  # faces spread into it
     # (Z, Y, X, 3) the bounce light's colour per cell, its luminance 1 (grey where none was
     # found): one for every way of facing (a wooden floor warms the ceiling above it).
-    chroma: np.ndarray | None = None
+    chroma: np.ndarray
 
-    @property
-    def nbytes(self) -> int:
-        return int(self.values.nbytes)
-
-    def lookup(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        """The even light at world ``points`` of unit ``normals``: a CPU twin of shading.glsl
-        ``even_light`` (trilinear between cell centres, clamped at the grid's edge; the three
-        grids on the normal's side by its squared components)."""
-        pts = np.asarray(points, np.float64).reshape(-1, 3)
-        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+    def _corners(self, points: np.ndarray) -> Iterator[tuple[tuple[np.ndarray, ...], np.ndarray]]:
+        """For each of the 8 cells around each point (trilinear between cell centres, clamped
+        at the grid's edge, as the GPU filters): their (z, y, x) indices and weights."""
         dims = np.array(self.dims)
-        g = np.clip((pts - self.origin) / self.cell, 0.5, dims - 0.5) - 0.5
+        g = np.clip((points - self.origin) / self.cell, 0.5, dims - 0.5) - 0.5
         base = np.minimum(np.floor(g).astype(np.int64), np.maximum(dims - 2, 0))
         f = g - base
+        for corner in range(8):
+            o = np.array([(corner >> a) & 1 for a in range(3)])
+            idx = np.minimum(base + o, dims - 1)
+            yield (idx[:, 2], idx[:, 1], idx[:, 0]), np.prod(np.where(o == 1, f, 1.0 - f), axis=1)
+
+    def lookup(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """The even light (luminance) at world ``points`` of unit ``normals``: a CPU twin of
+        shading.glsl ``even_light`` (the three grids on the normal's side by its squared
+        components)."""
+        pts = np.asarray(points, np.float64).reshape(-1, 3)
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
         out = np.zeros(len(pts))
-        for axis in range(3):
-            bucket = np.where(nrm[:, axis] >= 0.0, 2 * axis, 2 * axis + 1)
-            for corner in range(8):
-                o = np.array([(corner >> a) & 1 for a in range(3)])
-                idx = np.minimum(base + o, dims - 1)
-                w = np.prod(np.where(o == 1, f, 1.0 - f), axis=1) * nrm[:, axis] ** 2
-                out += w * self.values[bucket, idx[:, 2], idx[:, 1], idx[:, 0]]
+        for at, w in self._corners(pts):
+            for axis in range(3):
+                bucket = np.where(nrm[:, axis] >= 0.0, 2 * axis, 2 * axis + 1)
+                out += w * nrm[:, axis] ** 2 * self.values[(bucket,) + at]
         return out
 
     def colour_at(self, points: np.ndarray) -> np.ndarray:
         """The bounce light's colour (M, 3) at world ``points`` (luminance 1), as the shader
         interpolates it (red and blue stored, green from the luminance)."""
         pts = np.asarray(points, np.float64).reshape(-1, 3)
-        if self.chroma is None:
-            return np.ones((len(pts), 3))
-        dims = np.array(self.dims)
-        g = np.clip((pts - self.origin) / self.cell, 0.5, dims - 0.5) - 0.5
-        base = np.minimum(np.floor(g).astype(np.int64), np.maximum(dims - 2, 0))
-        f = g - base
         rb = np.zeros((len(pts), 2))
-        for corner in range(8):
-            o = np.array([(corner >> a) & 1 for a in range(3)])
-            idx = np.minimum(base + o, dims - 1)
-            w = np.prod(np.where(o == 1, f, 1.0 - f), axis=1)
-            rb += w[:, None] * self.chroma[idx[:, 2], idx[:, 1], idx[:, 0]][:, [0, 2]]
+        for at, w in self._corners(pts):
+            rb += w[:, None] * self.chroma[at][:, [0, 2]]
         return _with_green(rb[:, 0], rb[:, 1])
 
     def packed(self) -> np.ndarray:
         """The grids as the shader reads them, (2 Z, Y, X, 4) float16: slab 0 holds
         (+X, -X, +Y, -Y), slab 1 (+Z, -Z, red, blue of the colour): two fetches a pixel."""
-        v = self.values
-        c = self.chroma if self.chroma is not None else np.ones((*v.shape[1:], 3))
+        v, c = self.values, self.chroma
         first = np.stack([v[0], v[1], v[2], v[3]], axis=-1)
         second = np.stack([v[4], v[5], c[..., 0], c[..., 2]], axis=-1)
         return np.concatenate([first, second], axis=0).astype(np.float16)
@@ -126,8 +118,8 @@ def _with_green(red: np.ndarray, blue: np.ndarray) -> np.ndarray:
 
 
 def cell_size(points: np.ndarray) -> float:
-    """Twice the points' median nearest-neighbour distance (about their spacing on a
-    surface), within ``CELL_M``."""
+    """``SPACINGS`` times the points' median nearest-neighbour distance (half their spacing
+    on a surface), within ``CELL_M``."""
     from scipy.spatial import cKDTree
 
     if len(points) < 2:
@@ -166,10 +158,9 @@ def build_field(
     c = float(cell) if cell is not None else cell_size(pts)
     if not (math.isfinite(c) and c > 0.0):
         raise ValueError(f"ambient field cell must be a positive length, not {cell!r}")
-    margin = SPREAD
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    while True:  # grow the cell until the grid fits
-        dims = np.maximum(np.ceil((hi - lo) / c + 2.0 * margin).astype(np.int64), 1)
+    while True:  # grow the cell until the grid fits (with a tent's reach, SPREAD cells, each side)
+        dims = np.maximum(np.ceil((hi - lo) / c + 2.0 * SPREAD).astype(np.int64), 1)
         if int(np.prod(dims)) <= MAX_CELLS:
             break
         c *= 1.25

@@ -4,8 +4,6 @@ two trilinear fetches a pixel in every path that shades (deferred, CPS, forward,
 
 from __future__ import annotations
 
-from typing import cast
-
 import moderngl
 import numpy as np
 
@@ -23,11 +21,6 @@ class GpuAmbientField:
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.texture.repeat_x = self.texture.repeat_y = self.texture.repeat_z = False
 
-    @property
-    def nbytes(self) -> int:
-        x, y, z = self.field.dims
-        return x * y * 2 * z * 8
-
     def release(self) -> None:
         self.texture.release()
 
@@ -40,7 +33,7 @@ def bind_field(
         return
     unit = TEXTURE_UNITS["ambient_field"]
     uniform(prog, "u_ambient_field").value = unit
-    cast(moderngl.Texture, field.texture).use(unit)  # a 3D texture: the same use()
+    field.texture.use(unit)
     f = field.field
     set_uniforms(
         prog,

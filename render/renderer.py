@@ -18,7 +18,6 @@ import moderngl
 import numpy as np
 
 from app.ambient import AmbientEstimate, AmbientProbe, probe_for
-from app.ambient_field import AmbientField
 from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import LOD_ERRORS, Governor, apply_overrides
@@ -156,7 +155,7 @@ class Renderer:
         # The estimated ambient term for a scene and its lights, and the scene's probe.
         self._ambient: tuple[GpuScene, tuple, AmbientEstimate] | None = None
         self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
-        self._field: tuple[AmbientField, GpuAmbientField] | None = None  # its field, uploaded
+        self._field: GpuAmbientField | None = None  # the estimate's field, uploaded
         self.targets: list[EyeTargets] = []
         self.frames = 0
         self._errors_logged: set[str] = set()
@@ -336,11 +335,11 @@ class Renderer:
         field = est.by_place if est is not None and settings.render.ambient_by_place else None
         if field is None:
             return None
-        if self._field is None or self._field[0] is not field:
+        if self._field is None or self._field.field is not field:
             if self._field is not None:
-                self._field[1].release()
-            self._field = (field, GpuAmbientField(self.ctx, field))
-        return self._field[1]
+                self._field.release()
+            self._field = GpuAmbientField(self.ctx, field)
+        return self._field
 
     def ambient_term(self) -> float:
         """The frame's ambient term: estimated from the frame's lights and the sky
@@ -674,5 +673,5 @@ class Renderer:
             self.gpu_scene.release()
         self._empty.release()
         if self._field is not None:
-            self._field[1].release()
+            self._field.release()
         self.shaders.release()

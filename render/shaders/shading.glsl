@@ -43,7 +43,8 @@ uniform ivec3 u_af_dims;
 
 // The bounce light at P for normal N: the three grids on N's side, trilinear, by N's squared
 // components, in the colour found there (red and blue stored, green from the luminance;
-// AmbientField.lookup and colour_at are the CPU twins).
+// AmbientField.lookup and colour_at are the CPU twins). The one level is already in the grid
+// where it is unsure (build_field), so ``level`` serves only the variant without a field.
 vec3 even_light(vec3 P, vec3 N, float level) {
     vec3 dims = vec3(u_af_dims);
     vec3 g = clamp((P - u_af_origin_cell.xyz) / u_af_origin_cell.w, vec3(0.5), dims - 0.5);
