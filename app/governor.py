@@ -172,6 +172,7 @@ class Governor:
     lod_triangles: dict[float, int] | None = None
     _recent: deque[float] = field(default_factory=lambda: deque(maxlen=SPREAD_FRAMES))
     _local: deque[float] = field(default_factory=lambda: deque(maxlen=8))  # raw frame times
+    _skip: int = 0  # frames whose time the host's own work made slower (skip_next)
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
@@ -256,6 +257,12 @@ class Governor:
         self.ema_ms = None
         self._forget_steps()
 
+    def skip_next(self) -> None:
+        """The host did work of its own between this frame and the next (the benchmark's
+        full-quality reference: the next frame measured 20-25 % slower on llvmpipe): the next
+        frame's time is neither learnt from nor counted in the spread."""
+        self._skip = 1
+
     def _forget_steps(self) -> None:
         self.step_scale.clear()
         self.category_ms.clear()
@@ -326,7 +333,8 @@ class Governor:
         if not math.isfinite(frame_ms) or frame_ms <= 0:
             self.overrides = self._overrides(user)
             return self.overrides
-        if self.frames <= WARMUP_FRAMES:
+        if self.frames <= WARMUP_FRAMES or self._skip > 0:
+            self._skip = max(0, self._skip - 1)
             self.overrides = self._overrides(user)
             return self.overrides
         if len(self._local) >= 4:  # each frame against the usual one of the last few: a

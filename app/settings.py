@@ -280,14 +280,17 @@ class RenderSettings:
         choice_labels={"off": "Off", "hard": "Hard edges", "soft": "Soft edges"},
     )
     shadow_detail: str = _opt(
-        "half",
+        "auto",
         "Where the shadows are worked out: at every pixel, or at every second or fourth pixel "
         "across and down and filled in between along the surfaces (faster with many lamps; "
-        "an edge may soften a little). The forward path and glass always use every pixel.",
+        "an edge may soften a little). Automatic: every second pixel, every fourth from four "
+        "shadowed lamps on (each lamp's shadow is then a small part of the light, and the "
+        "cost grows with the lamps). The forward path and glass always use every pixel.",
         label="Shadow detail",
         paper="Screen-space shadow mask, depth-aware upsampling",
-        choices=("full", "half", "quarter"),
+        choices=("auto", "full", "half", "quarter"),
         choice_labels={
+            "auto": "Automatic (by the number of lamps)",
             "full": "Every pixel",
             "half": "Every 2nd pixel",
             "quarter": "Every 4th pixel",

@@ -501,6 +501,29 @@ def test_frames_that_vary_are_held_within_budget_by_aiming_lower():
     assert steady.spread() < 1.05 and steady.aim_ms() == pytest.approx(budget)
 
 
+def test_frames_the_host_slowed_are_not_counted_in_the_spread():
+    """The benchmark's full-quality reference slows the frame after it (every third frame a
+    third slower): told so (``skip_next``), the governor keeps the budget as its aim and
+    learns the steady cost; not told, it aims lower for frames the walk will not have."""
+    user = walking("30")
+    budget = 1000.0 / 30.0
+
+    def walk(told: bool) -> Governor:
+        gov, overrides = Governor(), {}
+        for i in range(200):
+            passes, ms = synthetic(user, overrides, 1.0)
+            slow = 1.33 if i % 3 == 1 else 1.0
+            overrides = gov.observe(user, {k: v * slow for k, v in passes.items()}, ms * slow)
+            if told and i % 3 == 0:
+                gov.skip_next()
+        return gov
+
+    told, not_told = walk(True), walk(False)
+    assert told.spread() < 1.05 and told.aim_ms() == pytest.approx(budget)
+    assert not_told.aim_ms() < 0.9 * budget, not_told.aim_ms()
+    assert told.ema_ms is not None and told.ema_ms <= budget
+
+
 def test_shadows_go_hard_then_off_and_never_back_up_from_the_users_choice():
     from app.governor import KNOBS
 

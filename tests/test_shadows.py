@@ -220,6 +220,22 @@ def test_the_shadow_mask_gives_the_per_pixel_picture(host, shadows, count):
     assert at(half, fi, SHADOWED) == pytest.approx(at(full, fi, SHADOWED), abs=0.01)
 
 
+@pytest.mark.parametrize("count, step", [(3, 2), (8, 4)])
+def test_automatic_detail_spaces_the_mask_by_the_lamps(host, count, step):
+    """render.shadow_detail=auto (the default): every 2nd pixel with three shadowed lamps,
+    every 4th with eight, whose shadows still match the per-pixel picture."""
+    assert Settings().render.shadow_detail == "auto"
+    scene = box_scene(mask_lights(count))
+    full, fi = hdr(host, scene, "soft", render__shadow_detail="full")
+    auto, _ = hdr(host, scene, "soft", render__shadow_detail="auto")
+    mask = host.renderer.shadow_mask
+    assert mask.enabled and mask.lights == count and mask.step == step
+    assert host.renderer.shadow_mask.targets[0].size == shadow_mask.mask_size(host.eye_size, step)
+    diff = np.abs(auto - full) / max(float(full.max()), 1e-6)
+    assert float(diff.mean()) < 0.003, float(diff.mean())
+    assert at(auto, fi, SHADOWED) == pytest.approx(at(full, fi, SHADOWED), abs=0.01)
+
+
 def test_the_mask_waits_for_enough_lights(host, monkeypatch):
     """Below ``MIN_LIGHTS`` shadowed lights the lighting looks them up per pixel (today the
     mask pays from the first light, hard or soft); shadowed either way."""
