@@ -81,6 +81,11 @@ MAX_STEPS_FAR, MAX_STEPS_NEAR = 6, 2
 
 #: A step back that the model predicts faster by at least this much is taken at once.
 FREE_RESTORE_MS = 0.5
+#: A trade of knobs (one given back, another lowered: :meth:`Governor._swap`) is made where
+#: the model says it loses this much less quality (the smallest measured steps' size) and
+#: takes no more time; looked for every SWAP_EVERY frames while the frame rate holds.
+SWAP_GAIN = 0.01
+SWAP_EVERY = 2 * 4
 #: Frames within budget counts those up to this share over it (the benchmark's +10 %).
 WITHIN = 1.1
 #: The recent frames whose spread sets the aim (:meth:`Governor.aim_ms`): the steadiest
@@ -367,6 +372,8 @@ class Governor:
                 self._lower(user, budget)
             elif usual < RESTORE_BELOW * budget:
                 self._restore(user, budget)
+            elif self.since_change >= SWAP_EVERY and self.since_change % SWAP_EVERY == 0:
+                self._swap(user)
         self.overrides = self._overrides(user)
         return self.overrides
 
@@ -477,15 +484,72 @@ class Governor:
         self._set_back(user, knob, j)
         return True
 
-    def _set_back(self, user: Settings, knob: Knob, j: int) -> None:
+    def error(self, user: Settings, position: dict[str, int]) -> float:
+        """The quality lost at ``position``: the sum of its steps' errors (the error table's
+        increments add up to each knob's loss from full quality)."""
+        total = 0.0
+        for knob, steps in self._knobs_all(user):
+            for step in steps[: position.get(knob.key, 0)]:
+                total += knob.error_of(step)
+        return total
+
+    def _given_back(self, user: Settings, knob: Knob, j: int) -> dict[str, int]:
+        """The position with ``knob`` at step ``j``: CPS off again (the user's is off) takes
+        its fovea knobs back with it, as they have nothing to do."""
         position = {**self.position, knob.key: j}
+        if knob.key == "cps.max_level" and j == 0 and user.cps.mode != "cps":
+            for k in self.knobs:
+                if k.fovea:
+                    position.pop(k.key, None)
+        return position
+
+    def _swap(self, user: Settings) -> bool:
+        """Greedy steps are taken one at a time, each the best then: coarse lighting taken at
+        full resolution saves much, but after the render scale went down it saves little for
+        the same loss. Give back one knob (a step, or all of its steps) and lower another by
+        up to three, where the model says that loses at least SWAP_GAIN less quality and
+        takes no more time (each trade lowers the loss: no cycle while the model stands).
+        True when it did."""
+        predicted = self.predict(user, self.position)
+        now = self.error(user, self.position)
+        best: tuple[float, Knob, int, Knob, int, dict[str, int]] | None = None
+        for a, a_steps in self._knobs_all(user):
+            i = self.position.get(a.key, 0)
+            if i <= 0 or a.key in self._backoff:
+                continue
+            for back in sorted({i - 1, 0}):
+                base = self._given_back(user, a, back)
+                for b, b_steps in self._knobs_at(user, base):
+                    if b.key == a.key:
+                        continue
+                    k = base.get(b.key, 0)
+                    last = len(b_steps) - (1 if b.last_resort else 0)
+                    for j in range(k + 1, min(k + 3, last) + 1):
+                        trial = {**base, b.key: j}
+                        if self.predict(user, trial) > predicted:
+                            continue
+                        gain = now - self.error(user, trial)
+                        if gain >= SWAP_GAIN and (best is None or gain > best[0]):
+                            best = (gain, a, back, b, j, trial)
+        if best is None:
+            return False
+        _, a, back, b, j, position = best
+        ema = float(self.ema_ms or 0.0)
+        self._trial(user, position)
+        self.position = position
+        a_value = a.usable_steps(user)[back - 1][a.key] if back > 0 else user.get(a.key)
+        if a.key == "cps.max_level" and back == 0:
+            a_value = user.cps.mode
+        self._changed(user, "restore", a, a_value, ema)
+        self._changed(user, "lower", b, b.usable_steps(user)[j - 1][b.key], ema)
+        self._restored = (a.key, self.frames)  # over budget after it: ``a`` is held back
+        return True
+
+    def _set_back(self, user: Settings, knob: Knob, j: int) -> None:
+        position = self._given_back(user, knob, j)
         value = knob.usable_steps(user)[j - 1][knob.key] if j > 0 else user.get(knob.key)
         if knob.key == "cps.max_level" and j == 0:
             value = user.cps.mode
-            if user.cps.mode != "cps":  # CPS off again: its fovea knobs have nothing to do
-                for k in self.knobs:
-                    if k.fovea:
-                        position.pop(k.key, None)
         self._trial(user, position)
         self.position = position
         self._restored = (knob.key, self.frames)
