@@ -121,12 +121,13 @@ class Decision:
     """One change the governor made, in words for the panel and the benchmark."""
 
     frame: int
-    action: str  # "lower" or "restore"
+    action: str  # "lower", "restore" or "trade" (lowered in place of a restore)
     knob: str
     value: Any
     frame_ms: float
     budget_ms: float
     largest: str  # the costliest category then
+    instead: str = ""  # a trade (action "trade"): the knob given back for this one's step
 
 
 #: The range of a learnt step factor (one measurement sets it: the model's shape can be off
@@ -394,10 +395,19 @@ class Governor:
         that the slow ones would pass it by more than WITHIN."""
         return min(self.budget_ms, WITHIN * self.budget_ms / self.spread())
 
-    def _changed(self, user: Settings, action: str, knob: Knob, value: Any, ema: float) -> None:
+    def _changed(
+        self, user: Settings, action: str, knob: Knob, value: Any, ema: float, instead: str = ""
+    ) -> None:
         self.history.append(
             Decision(
-                self.frames, action, knob.name, value, ema, self.budget_ms, self.largest_cost(user)
+                self.frames,
+                action,
+                knob.name,
+                value,
+                ema,
+                self.budget_ms,
+                self.largest_cost(user),
+                instead,
             )
         )
         del self.history[:-200]
@@ -513,7 +523,7 @@ class Governor:
         predicted = self.predict(user, self.position)
         now = self.error(user, self.position)
         best: tuple[float, Knob, int, Knob, int, dict[str, int]] | None = None
-        for a, a_steps in self._knobs_all(user):
+        for a, _a_steps in self._knobs_all(user):
             i = self.position.get(a.key, 0)
             if i <= 0 or a.key in self._backoff:
                 continue
@@ -541,7 +551,7 @@ class Governor:
         if a.key == "cps.max_level" and back == 0:
             a_value = user.cps.mode
         self._changed(user, "restore", a, a_value, ema)
-        self._changed(user, "lower", b, b.usable_steps(user)[j - 1][b.key], ema)
+        self._changed(user, "trade", b, b.usable_steps(user)[j - 1][b.key], ema, a.name)
         self._restored = (a.key, self.frames)  # over budget after it: ``a`` is held back
         return True
 
@@ -669,12 +679,14 @@ class Governor:
             changed = True
             value = steps[min(i, len(steps)) - 1][knob.key]
             why = next((d for d in reversed(self.history) if d.knob == knob.name), None)
-            reason = (
-                f" — frame {why.frame_ms:.0f} ms over the {why.budget_ms:.0f} ms budget; "
-                f"{_CATEGORY_WORDS.get(why.largest, why.largest)} was the largest cost"
-                if why is not None and why.action == "lower"
-                else ""
-            )
+            reason = ""
+            if why is not None and why.action == "lower":
+                reason = (
+                    f" — frame {why.frame_ms:.0f} ms over the {why.budget_ms:.0f} ms budget; "
+                    f"{_CATEGORY_WORDS.get(why.largest, why.largest)} was the largest cost"
+                )
+            elif why is not None and why.action == "trade":
+                reason = f" — in place of less {why.instead}, which lost more for its time"
             lines.append(f"{knob.name} {_shown(knob.key, value)}{reason}")
         if not changed:
             lines.append(
@@ -687,6 +699,7 @@ class Governor:
         return {
             "changes": len(self.history),
             "lowered": sum(d.action == "lower" for d in self.history),
+            "traded": sum(d.action == "trade" for d in self.history),
             "restored": sum(d.action == "restore" for d in self.history),
             "final": dict(self.overrides),
             "aim_ms": round(self.aim_ms(), 2),  # the budget, lowered where frames vary

@@ -149,7 +149,7 @@ def test_coarse_lighting_that_costs_more_than_it_saves_is_given_back():
     assert cps and cps[0].action == "lower"
     for d in cps:
         if d.action == "restore":
-            assert any(o.frame == d.frame and o.action == "lower" for o in gov.history)
+            assert any(o.frame == d.frame and o.action == "trade" for o in gov.history)
     without = {k: v for k, v in gov.position.items() if k != "cps.max_level"}
     assert gov.predict(user, {**without, "cps.max_level": 3}) < gov.predict(user, without)
 
@@ -175,7 +175,9 @@ def test_coarse_lighting_taken_at_full_resolution_is_traded_for_a_lower_scale():
     assert max(times[20:]) <= budget
     assert all(h == history[30] for h in history[30:])  # one trade, then it holds
     trade = [d for d in gov.history if d.frame == gov.history[0].frame]
-    assert [d.action for d in trade] == ["restore", "lower"]
+    assert [d.action for d in trade] == ["restore", "trade"]
+    assert trade[1].instead == "coarse lighting in the periphery"
+    assert any("in place of less coarse lighting" in line for line in gov.explain(user))
 
 
 def test_a_knob_that_saves_less_than_modelled_is_learnt():
