@@ -193,10 +193,9 @@ def bench(
     """Replay the path; per-frame wall time and per-pass GPU time. frames=0: the whole path.
 
     ``warmup`` frames are drawn first, untimed (shaders compile; with the governor on, they
-    walk the path's last frames and it settles on its knobs). ``stride`` K > 1 times every K-th frame of
-    the path only (the session still steps through
-    the frames in between, so motion states are as when played): the whole of a long walk in
-    fewer rendered frames.
+    walk the path's last frames and it settles on its knobs). ``stride`` K > 1 times every
+    K-th frame of the path only (the session still steps through the frames in between, so
+    motion states are as when played): the whole of a long walk in fewer rendered frames.
 
     With ``compare_every`` K > 0, every K-th frame is also rendered at full quality (TCR off;
     :class:`app.lab.reference.BenchReference`, its converged photon map from ``converged``,
