@@ -51,6 +51,18 @@ def test_the_table_counts_each_step_from_its_base_and_the_governor_takes_the_inc
     assert knobs["cps.fovea_deg"].error == prior["cps.fovea_deg"].error
 
 
+def test_no_shadows_keeps_its_prior_as_the_reference_cannot_measure_it():
+    """The reference keeps a run's shadows off, so the step to none measures 0: the table
+    stops before it and the governor keeps its prior (a last resort, dearly priced)."""
+    rows = [_row(FULL, 0.0), _row("render.shadows=hard", 0.01), _row("render.shadows=off", 0.0)]
+    table = error_table(rows)
+    assert [s["value"] for s in table["knobs"]["render.shadows"]] == ["hard"]
+    weights = {k: [s["weight"] for s in v] for k, v in table["knobs"].items()}
+    shadows = {k.key: k for k in measured_knobs(weights)}["render.shadows"]
+    prior = {k.key: k for k in governor_model.PRIOR_KNOBS}["render.shadows"]
+    assert shadows.error == pytest.approx((0.01, prior.error[1]))
+
+
 def test_a_missing_or_broken_table_keeps_the_priors(tmp_path, caplog):
     assert load_error_table(tmp_path / "none.json") == {}
     bad = tmp_path / "bad.json"

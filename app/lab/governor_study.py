@@ -57,6 +57,12 @@ KNOB_BASE: dict[str, tuple[str, ...]] = {
 }
 
 
+#: Steps the full-quality reference cannot measure: it keeps a run's own shadows off (a user
+#: who turned them off compares like with like), so no shadows would be measured against no
+#: shadows and cost nothing. Their priors stand (app.governor_model.PRIOR_KNOBS).
+UNMEASURED = {("render.shadows", "off")}
+
+
 def _assign(step: dict[str, Any]) -> tuple[str, ...]:
     def text(v: Any) -> str:
         return str(v).lower() if isinstance(v, bool) else str(v)
@@ -111,6 +117,8 @@ def error_table(rows: list[dict[str, Any]], scene: str = SCENE, path: str = PATH
         out = []
         for step in knob.steps:
             row = by_name.get(step_name(knob, step))
+            if (knob.key, step[knob.key]) in UNMEASURED:
+                break  # this step and those beyond keep their priors (measured_knobs)
             if row is None or base is None:
                 continue
             fig = _figures(row)
