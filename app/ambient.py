@@ -326,12 +326,12 @@ class AmbientProbe:
         n = len(self.points)
         suns = [lt for lt in lights if lt.kind == "directional"]
         lamps = [lt for lt in lights if lt.kind != "directional"]
-        e0 = np.zeros((2 * n, 3))  # in colour (for the bounce's colour), luminance below
-        e0_suns = np.zeros((2 * n, 3))
+        e0 = np.zeros(2 * n)
+        e0_suns = np.zeros(2 * n)
         for k, (side, c) in enumerate(zip((1.0, -1.0), self.closure, strict=True)):
             e = _direct(self.points, self.normal * side, lamps, self.caster, self.eps, True)
             if sky_sh is not None:
-                e = e + _sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)[:, None]
+                e = e + _sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)
             e0[k::2] = e
             if suns:
                 e0_suns[k::2] = _direct(
@@ -346,11 +346,11 @@ class AmbientProbe:
         gain = np.where(hit, self.rho[face // 2], 0.0)  # what a bounce keeps on each path
         # The first bounce: the lamps' and the sky's light where the rays hit, from the face
         # standing for each hit; the sun's exactly at the hit (a sharp patch on the floor).
-        sun_hits = np.zeros((*gain.shape, 3))
+        sun_hits = np.zeros(gain.shape)
         if suns:
             at, facing = self.hit_at.reshape(-1, 3), self.hit_normal.reshape(-1, 3)
             met = hit.ravel()
-            lit = np.zeros((len(at), 3))
+            lit = np.zeros(len(at))
             lit[met] = _direct(
                 at[met].astype(np.float64),
                 facing[met].astype(np.float64),
@@ -358,12 +358,11 @@ class AmbientProbe:
                 self.caster,
                 self.eps,
             )
-            sun_hits = lit.reshape(sun_hits.shape)
-        arriving_rgb = e0[face] + sun_hits
-        arriving = arriving_rgb @ LUMA
+            sun_hits = lit.reshape(gain.shape)
+        arriving = e0[face] + sun_hits
         first = (gain * arriving).sum(axis=1) / GATHER_RAYS
-        chroma = self._chroma(hit, face, arriving_rgb)
-        e0 = (e0 + e0_suns) @ LUMA
+        chroma = self._chroma(hit, face, arriving)
+        e0 = e0 + e0_suns
         total = first.copy()
         e = first
         kept = float(first.sum()) / float(e0.sum()) if e0.sum() > 0.0 else 0.0
@@ -405,12 +404,10 @@ class AmbientProbe:
 
     def _chroma(self, hit: np.ndarray, face: np.ndarray, arriving: np.ndarray) -> np.ndarray:
         """Each face's bounce light's colour (2 n, 3), its luminance 1: the first
-        ``CHROMA_BOUNCES`` bounces in colour, from the light arriving where the rays hit
-        (``arriving``, (2 n, rays, 3): the lamps', the sun's and the sky's own colours), each
-        surface's reflectance taking its colour (a wooden floor warms the ceiling, warm
-        lamps warm the whole bounce, the sky's blue tints the room's shade)."""
+        ``CHROMA_BOUNCES`` bounces in colour, the surfaces' reflectance taking their colour
+        (the lamps' and the sun's light as white: a wooden floor warms the ceiling)."""
         gain = np.where(hit[..., None], self.rho_rgb[face // 2], 0.0)  # (2 n, rays, 3)
-        e = (gain * arriving).sum(axis=1) / GATHER_RAYS
+        e = (gain * arriving[..., None]).sum(axis=1) / GATHER_RAYS
         total = e.copy()
         for _ in range(CHROMA_BOUNCES - 1):
             e = (gain * e[face]).sum(axis=1) / GATHER_RAYS
@@ -500,16 +497,13 @@ def _direct(
     eps: float,
     whole_lamp: bool = False,
 ) -> np.ndarray:
-    """Direct irradiance (lux) on faces with ``normal``, in the lights' colour (n, 3): its
-    luminance (``@ LUMA``) is the irradiance; ``whole_lamp``: without the range window
-    (:func:`bounce_falloff`)."""
-    out = np.zeros((points.shape[0], 3))
+    """Direct irradiance (lux, luminance of the light's colour) on faces with ``normal``;
+    ``whole_lamp``: without the range window (:func:`bounce_falloff`)."""
+    out = np.zeros(points.shape[0])
     for light in lights:
-        colour = np.asarray(light.color, np.float64) * float(light.intensity)
-        lum = float(colour @ LUMA)
-        if not (math.isfinite(lum) and lum > 0.0 and np.isfinite(colour).all()):
+        lum = float(np.asarray(light.color, np.float64) @ LUMA) * float(light.intensity)
+        if not (math.isfinite(lum) and lum > 0.0):
             continue
-        colour = np.maximum(colour, 0.0)
         if light.kind == "directional":
             d = -np.asarray(light.direction, np.float64)
             d = d / max(float(np.linalg.norm(d)), 1e-12)
@@ -519,7 +513,8 @@ def _direct(
                 continue
             origin = points[lit] + normal[lit] * eps
             dist, _ = caster.cast_many(origin, np.broadcast_to(d, origin.shape))
-            out[lit] += np.where(np.isinf(dist), cos[lit], 0.0)[:, None] * colour
+            e = np.where(np.isinf(dist), lum * cos[lit], 0.0)
+            out[lit] += e
             continue
         to_l = np.asarray(light.position, np.float64) - points
         d2 = np.einsum("ij,ij->i", to_l, to_l)
@@ -534,17 +529,16 @@ def _direct(
         origin = points[lit] + normal[lit] * eps
         hit, _ = caster.cast_many(origin, ldir[lit])
         seen = hit >= dist_l[lit] - 2.0 * eps
-        out[lit] += np.where(seen, cos[lit] * fall[lit], 0.0)[:, None] * colour
+        out[lit] += np.where(seen, lum * cos[lit] * fall[lit], 0.0)
     return out
 
 
 def _sky_irradiance(normal: np.ndarray, sky_sh: np.ndarray) -> np.ndarray:
-    """The open sky's irradiance (lux, in its colour: (n, 3)) on faces with ``normal``:
-    pi SH(n)."""
+    """The open sky's irradiance (lux, luminance) on faces with ``normal``: pi SH(n)."""
     from app.sky_model import sh_basis
 
     white = sh_basis(normal) @ np.asarray(sky_sh, np.float64).reshape(9, 3)
-    return math.pi * np.maximum(white, 0.0)
+    return math.pi * np.maximum(white @ LUMA, 0.0)
 
 
 def _cone(light: Light, to_light: np.ndarray) -> np.ndarray:
