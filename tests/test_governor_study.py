@@ -202,3 +202,23 @@ def test_pairs_carry_the_governor_at_the_presets_time(monkeypatch):
     row_b = governor_study._pairs_markdown([a, b]).splitlines()[-1]
     cells = [c.strip() for c in row_b.strip("|").split("|")]
     assert cells[0] == "preset-b" and cells[-2:] == ["-", "-"]
+
+
+def test_settling_frames_walk_untimed_and_let_the_governor_settle():
+    """``bench(settle=N)``: N frames walked before the warm-up, none of them timed; the
+    governor (asked for far more than this machine draws) has lowered its knobs before the
+    first timed frame, which a run without settling starts at full quality."""
+    from app.lab.bench import bench
+    from app.scenes import resolve_path
+    from app.settings import Settings
+
+    s = Settings()
+    s.set("render.target_fps", "240")
+    walk = resolve_path("showroom_walkthrough")
+    settled = bench("showroom", (320, 180), 3, s, warmup=1, path=walk, settle=12)
+    assert settled.frames == 3
+    first = settled.per_frame[0]["knobs"]
+    assert first.get("render.scale", 1.0) < 1.0, first
+    assert settled.frame_budget is not None and settled.frame_budget.governor["changes"] > 0
+    cold = bench("showroom", (320, 180), 3, s, warmup=0, path=walk)
+    assert cold.per_frame[0]["knobs"] == {}  # its first frame drawn at full quality

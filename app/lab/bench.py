@@ -189,11 +189,13 @@ def bench(
     compare_every: int = 0,
     stride: int = 1,
     converged: ConvergedPhotons | None = None,
+    settle: int = 0,
 ) -> BenchResult:
     """Replay the path; per-frame wall time and per-pass GPU time. frames=0: the whole path.
 
-    ``warmup`` frames are drawn first, untimed (shaders compile; with the governor on, they
-    walk the path's last frames and it settles on its knobs). ``stride`` K > 1 times every
+    ``warmup`` frames are drawn first, untimed, on the path's first frame (shaders compile);
+    before them ``settle`` frames walk the path's last ones, untimed (the governor settles
+    on its knobs: the governor study compares it settled). ``stride`` K > 1 times every
     K-th frame of the path only (the session still steps through the frames in between, so
     motion states are as when played): the whole of a long walk in fewer rendered frames.
 
@@ -229,12 +231,11 @@ def bench(
     frame_calls: list[int] = []  # draw calls for meshes per frame, every pass
     try:
         host.set_text_image(None)
-        # While the governor holds a frame rate the warm-up walks the path's last frames
-        # into its first (standing still, the picture would refine and the governor hold
-        # full quality instead of settling); fixed settings warm up on the first frame.
-        walk = target_fps(settings, None) > 0
-        for i in range(-warmup, total):
-            at = i if walk else max(i, 0)
+        # The settling frames walk the path's last frames (standing still, the picture
+        # would refine and the governor hold full quality instead of settling), the warm-up
+        # frames stand on the first.
+        for i in range(-settle - warmup, total):
+            at = i + warmup if i < -warmup else max(i, 0)
             session.apply_path_frame(at * stride % session.path.frame_count())
             frame = session.frame_input(*host.eye_size)
             calls_before = host.renderer.frame_draw_calls()

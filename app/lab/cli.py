@@ -76,6 +76,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--frames", type=int, default=120, help="frames to time (0: the whole path)")
     b.add_argument("--warmup", type=int, default=5, help="frames rendered before timing")
     b.add_argument(
+        "--settle",
+        type=int,
+        default=0,
+        help="frames walked before the warm-up, untimed (the frame-rate governor settles)",
+    )
+    b.add_argument(
         "--compare-every",
         type=int,
         default=0,
@@ -288,6 +294,7 @@ def _run(
                 progress,
                 args.compare_every,
                 args.stride,
+                settle=args.settle,
             )
         from app.lab.results import write_json
 

@@ -45,8 +45,8 @@ PRESETS: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 GOVERNOR = "governor"
 #: Untimed frames the governor walks before its timed ones: it starts from full quality and
-#: settles in a few changes of MIN_FRAMES each; the fixed presets need none (their 3 compile
-#: the shaders). The study compares the settled governor with each preset.
+#: settles in a few changes of MIN_FRAMES each; the fixed presets need none. Then the 3
+#: warm-up frames of every run. The study compares the settled governor with each preset.
 SETTLE_FRAMES = 48
 #: The base a knob is measured on, where it acts only on top of another setting.
 KNOB_BASE: dict[str, tuple[str, ...]] = {
@@ -264,7 +264,7 @@ def run_governor_study(
     matrix = replace(
         matrix,
         runs=tuple(
-            replace(r, warmup=SETTLE_FRAMES) if r.name.startswith(GOVERNOR) else r
+            replace(r, settle=SETTLE_FRAMES) if r.name.startswith(GOVERNOR) else r
             for r in matrix.runs
         ),
     )

@@ -30,6 +30,7 @@ class Run:
     size: str = "1280x720"
     groups: tuple[str, ...] = field(default=())  # per-frame groupings the report lists
     warmup: int = 5
+    settle: int = 0  # untimed frames walked first (app.lab.bench.bench)
 
     def settings(self) -> Settings:
         settings = Settings()
@@ -51,6 +52,8 @@ class Run:
             "--warmup",
             str(self.warmup),
         ]
+        if self.settle > 0:
+            parts += ["--settle", str(self.settle)]
         if self.stride > 1:
             parts += ["--stride", str(self.stride)]
         if self.compare_every:
@@ -86,6 +89,7 @@ def bench_run(
         run.compare_every,
         run.stride,
         converged,
+        run.settle,
     )
     result.command = run.command()
     return result
