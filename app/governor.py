@@ -165,7 +165,9 @@ class Governor:
     _overshoots: dict[str, int] = field(default_factory=dict)  # restores of a knob that overshot
     # _knobs_all and the user's knob values, for this frame's settings
     _steps: tuple[Settings, list, dict[str, Any]] | None = None
-    _restored: tuple[str, int] | None = None  # the last restore and when (overshoot check)
+    # The last restore (or trade), when, and the position before it: a frame over budget
+    # soon after it undoes it (overshoot check).
+    _restored: tuple[str, int, dict[str, int]] | None = None
     # What the timers taught of each knob step: (key, step) -> category -> a factor on the
     # model's (the model's shape can be wrong for a scene: simpler geometry saves nothing
     # where the frame is not drawing triangles; CPS's lighting saves less than modelled).
@@ -367,7 +369,9 @@ class Governor:
             # work) does not lower the knobs; the aim already leaves room for such frames.
             since = list(self._local)[-min(self.since_change, len(self._local)) :]
             usual = float(np.median(since)) if since else self.ema_ms
-            if self._free_restore(user):
+            if usual > budget and self._restored is not None:
+                self._lower(user, budget)  # the last restore overshot: undone first
+            elif self._free_restore(user):
                 pass
             elif usual > budget:
                 self._lower(user, budget)
@@ -416,11 +420,23 @@ class Governor:
 
     def _lower(self, user: Settings, budget: float) -> None:
         """Greedy: steps with the least error per ms saved until the prediction fits."""
-        if self._restored is not None:  # the last restore overshot: hold it back longer
-            key = self._restored[0]
+        if self._restored is not None:  # the last restore overshot: undo it, hold it back
+            key, _, before = self._restored
             self._overshoots[key] = self._overshoots.get(key, 0) + 1
             self._backoff[key] = 8 * MIN_FRAMES * 2 ** self._overshoots[key]
             self._restored = None
+            # Its costs were mispredicted (a category not measured for a while, the view
+            # changed): the frames before it were within budget, so go back there at once
+            # rather than take new steps on the same model.
+            knob = next((k for k in self.knobs if k.key == key), None)
+            steps = knob.usable_steps(user) if knob is not None else []
+            i = before.get(key, 0)
+            if knob is not None and 0 < i <= len(steps):
+                ema = float(self.ema_ms or 0.0)
+                self._trial(user, before)
+                self.position = dict(before)
+                self._changed(user, "lower", knob, steps[i - 1][knob.key], ema)
+                return
         position = dict(self.position)
         predicted = self.predict(user, position)
         # The model's scale can lag behind the measured average: correct it to the measurement.
@@ -545,6 +561,7 @@ class Governor:
             return False
         _, a, back, b, j, position = best
         ema = float(self.ema_ms or 0.0)
+        before = dict(self.position)
         self._trial(user, position)
         self.position = position
         a_value = a.usable_steps(user)[back - 1][a.key] if back > 0 else user.get(a.key)
@@ -552,17 +569,18 @@ class Governor:
             a_value = user.cps.mode
         self._changed(user, "restore", a, a_value, ema)
         self._changed(user, "trade", b, b.usable_steps(user)[j - 1][b.key], ema, a.name)
-        self._restored = (a.key, self.frames)  # over budget after it: ``a`` is held back
+        self._restored = (a.key, self.frames, before)  # over budget after it: undone
         return True
 
     def _set_back(self, user: Settings, knob: Knob, j: int) -> None:
+        before = dict(self.position)
         position = self._given_back(user, knob, j)
         value = knob.usable_steps(user)[j - 1][knob.key] if j > 0 else user.get(knob.key)
         if knob.key == "cps.max_level" and j == 0:
             value = user.cps.mode
         self._trial(user, position)
         self.position = position
-        self._restored = (knob.key, self.frames)
+        self._restored = (knob.key, self.frames, before)
         self._changed(user, "restore", knob, value, float(self.ema_ms or 0.0))
 
     def _trial(self, user: Settings, position: dict[str, int]) -> None:

@@ -180,6 +180,30 @@ def test_coarse_lighting_taken_at_full_resolution_is_traded_for_a_lower_scale():
     assert any("in place of less coarse lighting" in line for line in gov.explain(user))
 
 
+def test_a_restore_that_overshoots_is_undone_in_one_step():
+    """The model can be wrong about a step back (a category it has not measured for a while,
+    a view it has not seen): the frames after it are far over budget. The governor goes back
+    to where it was before that change, rather than take new steps on the same model (or a
+    "free" one it now mispredicts), and holds the knob back for a while."""
+    user = walking("30")
+    budget = 1000.0 / 30.0
+
+    def truth(values):  # full resolution costs four times what the model says
+        f = cost_factors(values)
+        if float(values.get("render.scale", 1.0)) >= 0.999:
+            f = {c: 4.0 * v for c, v in f.items()}
+        return f
+
+    gov = Governor(position={"render.scale": 1})  # 0.85, within budget with time to spare
+    gov, times, history = run(user, 60, load=lambda i: 0.5, gov=gov, truth=truth)
+    full = next(i for i, h in enumerate(history) if "render.scale" not in h)
+    assert times[full + 1] > 2 * budget  # the model said full resolution fits: it does not
+    undone = next(i for i in range(full + 1, len(history)) if history[i] != history[full])
+    assert undone - full <= 6 and history[undone] == history[full - 1]  # back where it was
+    assert all("render.scale" in h for h in history[undone:])  # not retried meanwhile
+    assert max(times[undone + 2 :]) <= budget
+
+
 def test_a_knob_that_saves_less_than_modelled_is_learnt():
     """A room of few triangles: simpler geometry saves nothing (the model says about half the
     geometry pass). The governor measures each one-knob change against the model and learns
