@@ -369,7 +369,7 @@ class Governor:
             # work) does not lower the knobs; the aim already leaves room for such frames.
             since = list(self._local)[-min(self.since_change, len(self._local)) :]
             usual = float(np.median(since)) if since else self.ema_ms
-            if usual > budget and self._restored is not None:
+            if usual > WITHIN * budget and self._restored is not None:
                 self._lower(user, budget)  # the last restore overshot: undone first
             elif self._free_restore(user):
                 pass
@@ -500,6 +500,8 @@ class Governor:
         best: tuple[float, Knob, int] | None = None
         for knob, _steps in self._knobs_all(user):
             i = self.position.get(knob.key, 0)
+            if knob.key in self._backoff:  # given back before and over budget after it
+                continue
             for j in range(i):
                 gain = predicted - self.predict(user, {**self.position, knob.key: j})
                 if gain >= FREE_RESTORE_MS and (best is None or gain > best[0]):
