@@ -180,7 +180,7 @@ class Governor:
     lod_triangles: dict[float, int] | None = None
     _recent: deque[float] = field(default_factory=lambda: deque(maxlen=SPREAD_FRAMES))
     _local: deque[float] = field(default_factory=lambda: deque(maxlen=8))  # raw frame times
-    _skip: int = 0  # frames whose time the host's own work made slower (skip_next)
+    _skip: bool = False  # the next frame's time the host's own work made slower (skip_next)
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
@@ -269,7 +269,7 @@ class Governor:
         """The host did work of its own between this frame and the next (the benchmark's
         full-quality reference: the next frame measured 20-25 % slower on llvmpipe): the next
         frame's time is neither learnt from nor counted in the spread."""
-        self._skip = 1
+        self._skip = True
 
     def _forget_steps(self) -> None:
         self.step_scale.clear()
@@ -341,8 +341,8 @@ class Governor:
         if not math.isfinite(frame_ms) or frame_ms <= 0:
             self.overrides = self._overrides(user)
             return self.overrides
-        if self.frames <= WARMUP_FRAMES or self._skip > 0:
-            self._skip = max(0, self._skip - 1)
+        if self.frames <= WARMUP_FRAMES or self._skip:
+            self._skip = False
             self.overrides = self._overrides(user)
             return self.overrides
         if len(self._local) >= 4:  # each frame against the usual one of the last few: a
@@ -429,13 +429,12 @@ class Governor:
             # changed): the frames before it were within budget, so go back there at once
             # rather than take new steps on the same model.
             knob = next((k for k in self.knobs if k.key == key), None)
-            steps = knob.usable_steps(user) if knob is not None else []
             i = before.get(key, 0)
-            if knob is not None and 0 < i <= len(steps):
+            if knob is not None and 0 < i <= len(knob.usable_steps(user)):
                 ema = float(self.ema_ms or 0.0)
                 self._trial(user, before)
                 self.position = dict(before)
-                self._changed(user, "lower", knob, steps[i - 1][knob.key], ema)
+                self._changed(user, "lower", knob, _value_at(user, knob, i), ema)
                 return
         position = dict(self.position)
         predicted = self.predict(user, position)
@@ -566,24 +565,18 @@ class Governor:
         before = dict(self.position)
         self._trial(user, position)
         self.position = position
-        a_value = a.usable_steps(user)[back - 1][a.key] if back > 0 else user.get(a.key)
-        if a.key == "cps.max_level" and back == 0:
-            a_value = user.cps.mode
-        self._changed(user, "restore", a, a_value, ema)
-        self._changed(user, "trade", b, b.usable_steps(user)[j - 1][b.key], ema, a.name)
+        self._changed(user, "restore", a, _value_at(user, a, back), ema)
+        self._changed(user, "trade", b, _value_at(user, b, j), ema, a.name)
         self._restored = (a.key, self.frames, before)  # over budget after it: undone
         return True
 
     def _set_back(self, user: Settings, knob: Knob, j: int) -> None:
         before = dict(self.position)
         position = self._given_back(user, knob, j)
-        value = knob.usable_steps(user)[j - 1][knob.key] if j > 0 else user.get(knob.key)
-        if knob.key == "cps.max_level" and j == 0:
-            value = user.cps.mode
         self._trial(user, position)
         self.position = position
         self._restored = (knob.key, self.frames, before)
-        self._changed(user, "restore", knob, value, float(self.ema_ms or 0.0))
+        self._changed(user, "restore", knob, _value_at(user, knob, j), float(self.ema_ms or 0.0))
 
     def _trial(self, user: Settings, position: dict[str, int]) -> None:
         """Measure the change to ``position`` where it moves one knob only (several at once
@@ -752,6 +745,14 @@ def _shown(key: str, value: Any) -> str:
     if key in ("cps.fovea_deg", "cps.deg_per_level"):
         return f"{value:g}°"
     return str(value)
+
+
+def _value_at(user: Settings, knob: Knob, j: int) -> Any:
+    """What ``knob`` is set to at its step ``j`` (0: the user's own value; coarse lighting
+    given back shows the user's CPS mode, as "none" when CPS was off)."""
+    if j > 0:
+        return knob.usable_steps(user)[j - 1][knob.key]
+    return user.cps.mode if knob.key == "cps.max_level" else user.get(knob.key)
 
 
 def _exists(settings: Settings, key: str) -> bool:

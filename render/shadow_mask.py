@@ -8,9 +8,9 @@ unshadowed frame. This pass works out, before the lighting, the shadow factor of
 (``quarter``; ``auto``, the default: the 4th from ``AUTO_QUARTER_FROM`` lights on) pixel across
 and down, each only for the lights whose range, cone and side reach the pixel's surface
 (shadow_mask.frag.glsl). The factors (8 bits each) and the sample's view distance go into one
-RGBA32UI texel; the lighting reads a pixel's factors once, upsampled from
-the four samples around it with bilinear weights times closeness in depth and orientation
-(shadow_mask.glsl), and its light loop does no map lookups for those lights. A light's slot
+RGBA32UI texel; the lighting reads a pixel's factors once, upsampled from the four samples
+around it with bilinear weights times closeness in depth and orientation (shadow_mask.glsl),
+and its light loop does no map lookups for those lights. A light's slot
 travels in the Shadows block (``shadow_light[i].z``, render/shadows.py, most prominent lights
 first); with more than eight shadowed lights the others keep their per-pixel lookups (the
 SHADOW_MASK 2 variant).
@@ -44,6 +44,16 @@ STEPS = {"half": 2, "quarter": 4}  # render.shadow_detail -> the sample spacing 
 # frame at every 2nd pixel (mask 26 ms), 130 ms at every 4th (9 ms), unshadowed 108 ms, with
 # 0.2 % of the pixels changed by more than 8 levels of 255.
 AUTO_QUARTER_FROM = 4
+
+
+def mask_step(detail: str, lights: int) -> int:
+    """The sample spacing in pixels for ``render.shadow_detail`` with ``lights`` in the mask
+    (0: every pixel looks up its maps, no mask)."""
+    if detail == "auto":
+        return STEPS["quarter" if lights >= AUTO_QUARTER_FROM else "half"]
+    return STEPS.get(detail, 0)
+
+
 # Shadowed lights from which the mask is used (render.shadows -> count). Measured on llvmpipe,
 # 2x640x720, on a quiet machine: it pays from the first light, hard or soft (the shared living
 # room, one lamp: hard 1.31x unshadowed per pixel, 1.23x with the mask; soft 1.33x and 1.27x).
@@ -109,20 +119,19 @@ class ShadowMaskPass(RenderPass):
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
         self.step = STEPS["half"]
-        self.auto = False  # render.shadow_detail=auto: the step by the lights in the mask
+        self.detail = "half"  # render.shadow_detail: the step follows it and the lights
         self.targets: list[MaskTargets] = []
         self.lights = 0  # lights in the mask last frame
         self.min_lights = 1
 
     def configure(self, settings, scene, frame) -> bool:
         r = settings.render
-        self.auto = r.shadow_detail == "auto"
-        self.step = STEPS["half"] if self.auto else STEPS.get(r.shadow_detail, 0)
+        self.detail = r.shadow_detail
         self.min_lights = MIN_LIGHTS.get(r.shadows, 1)
         return (
             r.path == "deferred"
             and r.shadows != "off"
-            and self.step > 0
+            and mask_step(self.detail, SHADOW_MASK_SLOTS) > 0
             and any(light.casts_shadows for light in scene.light_list)
         )
 
@@ -140,8 +149,7 @@ class ShadowMaskPass(RenderPass):
         self.lights = len(slots) if len(slots) >= self.min_lights else 0
         if not self.lights:
             return  # too few lights have a map this frame: the lighting looks them up itself
-        if self.auto:
-            self.step = STEPS["quarter" if len(slots) >= AUTO_QUARTER_FROM else "half"]
+        self.step = mask_step(self.detail, len(slots))
         self._ensure(res.targets[0].size)
         used = 4 if len(slots) <= 4 else SHADOW_MASK_SLOTS
         lights = np.full(SHADOW_MASK_SLOTS, -1, np.int32)
