@@ -69,6 +69,8 @@ class ExposurePass(RenderPass):
         self._pending = False
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
+        if frame.warming:  # a frame no one sees: the last real frame's metering stays
+            return
         prog = self.shaders.program("fullscreen.vert.glsl", "exposure_meter.frag.glsl")
         w, h = METER_CELLS
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)

@@ -70,6 +70,13 @@ class OffscreenHost:
             self.renderer.render(frame, self.fbo)
         return self.read_pixels()
 
+    def warm_variants(self, frame: FrameInput) -> None:
+        """While the governor holds a frame rate: compile every program its knobs may turn
+        to now (``Renderer.warm_variants``), not one a frame as the window does."""
+        if self.renderer.governor.budget_ms > 0:
+            with self.ctx:
+                self.renderer.warm_variants(frame, None)
+
     def render_only(self, frame: FrameInput) -> None:
         """Render and wait for the GPU, without reading pixels back (for timing)."""
         self.sync_photons()

@@ -88,6 +88,9 @@ class FrameContext:
     refine_target: int = 0
     # render.normal_maps: the material variants sample their normal maps (off: flat normals)
     normal_maps: bool = True
+    # A small frame no one sees, drawn to compile the programs of knobs the governor may
+    # turn to (Renderer.warm_variants): the shadow maps stay as they are, nothing is metered.
+    warming: bool = False
     # The even light of a surface of normal n: max(ambient + ambient_gradient . n, 0)
     # (app.ambient.AmbientEstimate.base_and_gradient; zero with the fixed ambient)
     ambient_gradient: tuple[float, float, float] = (0.0, 0.0, 0.0)

@@ -20,7 +20,7 @@ import numpy as np
 from app.ambient import AmbientEstimate, AmbientProbe, probe_for
 from app.camera import jittered
 from app.frame import FrameInput
-from app.governor import LOD_ERRORS, Governor, apply_overrides
+from app.governor import LOD_ERRORS, Governor, apply_overrides, program_key
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.raycast import RayCaster
@@ -107,6 +107,12 @@ class _Pass(Generic[P]):
         return cast(P, renderer.pass_named(self.name))
 
 
+#: The warm frames' eyes (Renderer.warm_variants): this fraction of a side of the view's,
+#: at least WARM_MIN_PX.
+WARM_SHARE = 8
+WARM_MIN_PX = 16
+
+
 class Renderer:
     daylight = _Pass[DaylightPass]()
     shadows = _Pass[ShadowPass]()
@@ -174,6 +180,11 @@ class Renderer:
         # the host restarts its session's samples (``Refinement.restart``).
         self.refine_restarted = False
         self._refine_dropped = False
+        # The programs drawn for this scene (program_key of the frames' settings) and the scene
+        # of the last real frame: what :meth:`warm_variants` has still to draw.
+        self._warmed: set[tuple] = set()
+        self._drawn: GpuScene | None = None
+        self._warm_done: tuple | None = None  # (scene, the user's program_key) warmed
 
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
@@ -190,6 +201,8 @@ class Renderer:
             self.exposure_meter.forget()
         self._forget_refinement()
         self.governor.new_scene()  # another room costs otherwise: learn it afresh
+        self._warmed.clear()  # its materials are other programs
+        self._warm_done = None
         if scene is not None:
             self.gpu_scene = GpuScene(
                 self.ctx,
@@ -434,6 +447,11 @@ class Renderer:
         settings for this frame only; the eyes are drawn at ``render.scale`` and enlarged by
         the present pass."""
         user = self.settings
+        if split is None and self.governor.budget_ms > 0:
+            try:
+                self.warm_variants(frame)
+            except Exception as exc:  # noqa: BLE001 - a failed warm-up: the frame is drawn on
+                self._log_once("warm-up", exc)
         start = time.perf_counter()
         self.settings = apply_overrides(user, self.governor.overrides)
         try:
@@ -455,6 +473,63 @@ class Renderer:
             self._log_once("governor", exc)
             self.governor = Governor()  # the next frame at the user's own settings
 
+    def warm_variants(self, frame: FrameInput, limit: int | None = 1) -> int:
+        """Draw up to ``limit`` (None: all) of the programs the governor's knobs could turn
+        to that this scene has not drawn yet, each in one small frame no one sees
+        (:meth:`app.governor.Governor.program_variants`); how many are left.
+
+        A program's first frame compiles it: on llvmpipe with a cold shader cache, 0.3-1 s
+        for hard shadows or coarse lighting, a stall in the walk the governor meant to keep
+        smooth. Drawn from the scene's second frame on (the shadow maps and the mask exist
+        then, so a warm frame takes a real frame's programs), one a frame in the window.
+        The warm frames leave the exposure, the shadow maps, the frame count and the
+        governor as they were; a refinement in progress starts again."""
+        user = self.settings
+        scene = self.gpu_scene
+        if scene is None or self._drawn is not scene or not frame.eyes:
+            return 0
+        done = (scene, program_key(user))
+        if self._warm_done == done:  # every frame: nothing new unless the user's key changed
+            return 0
+        todo: dict[tuple, Settings] = {}
+        for overrides in self.governor.program_variants(user):
+            settings = apply_overrides(user, overrides)
+            key = program_key(settings)
+            if key not in self._warmed:
+                todo.setdefault(key, settings)
+        if not todo:
+            self._warm_done = done
+            return 0
+        items = list(todo.items())[: len(todo) if limit is None else max(0, limit)]
+        eye = frame.eyes[0]
+        w, h = max(WARM_MIN_PX, eye.width // WARM_SHARE), max(WARM_MIN_PX, eye.height // WARM_SHARE)
+        small = dataclasses.replace(
+            frame,
+            eyes=[dataclasses.replace(e, width=w, height=h) for e in frame.eyes],
+            refining=False,
+        )
+        refine = self._by_name.get("refine")
+        was_refining = isinstance(refine, RefinePass) and refine.valid
+        kept = (self.frames, self._exposure_scale, self.refine_restarted, self._refine_dropped)
+        color = self.ctx.texture((2 * w, h), 4)
+        out = self.ctx.framebuffer([color])
+        try:
+            for key, settings in items:
+                self.settings = settings
+                try:
+                    out.use()
+                    self._render(small, out, (0, 0), None, user, warming=True)
+                finally:
+                    self.settings = user
+                self._warmed.add(key)
+        finally:
+            out.release()
+            color.release()
+            self.frames, self._exposure_scale, self.refine_restarted, self._refine_dropped = kept
+            if was_refining:
+                self._forget_refinement()  # the warm frames drew over its targets
+        return len(todo) - len(items)
+
     def _lod_triangles(self, frame: FrameInput) -> dict[float, int] | None:
         """Every 8th frame while the governor holds a frame rate: the left eye's triangles
         at each allowed error of ``LOD_ERRORS`` (what its level-of-detail steps would draw;
@@ -471,6 +546,7 @@ class Renderer:
         origin: tuple[int, int],
         split: SplitFrame | None,
         user: Settings,
+        warming: bool = False,
     ) -> None:
         view = (frame.eyes[0].width, frame.eyes[0].height)
         scale = 1.0 if split is not None else self.settings.render.scale
@@ -491,7 +567,8 @@ class Renderer:
         eye = frame.eyes[0]
         self._ensure_targets(eye.width, eye.height)
         self.cps.ensure(self.targets)
-        self.step_exposure()
+        if not warming:
+            self.step_exposure()
         self._sync_lights()
         if split is not None and frame.refining:  # the presenter shows the technique as is
             dx, dy = frame.jitter
@@ -506,6 +583,7 @@ class Renderer:
         ctx = self.frame_context(frame, out, origin, split, settings)
         ctx.scene.lod_bias = settings.render.lod_bias  # cheap: the governor moves it
         ctx.view_size = view
+        ctx.warming = warming
         refine = self._by_name.get("refine")
         # Refined: the mean is final, so the passes before the accumulation are not drawn.
         holding = isinstance(refine, RefinePass) and refine.holding(ctx)
@@ -548,6 +626,9 @@ class Renderer:
         for p in enabled:  # the timers, once every pass is submitted (RenderPass.collect)
             p.collect()
         self.frames += 1
+        if not warming:
+            self._drawn = self.gpu_scene
+            self._warmed.add(program_key(settings))
 
     def cps_stats(self) -> dict:
         """Share of pixels per detail level and lighting evaluations, from the last frame's

@@ -128,14 +128,35 @@ class ShaderLibrary:
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self._cache: dict[tuple, moderngl.Program | moderngl.ComputeShader] = {}
-        # Defines every program gets besides its own (a renderer-wide variant, e.g. the shadow
-        # filter; a program of another value is another program).
+        # Defines every program that names them gets besides its own (a renderer-wide variant,
+        # e.g. the shadow filter; a program of another value is another program). A program
+        # whose source does not name one is the same program at any value of it, so it is
+        # neither rebuilt nor re-keyed when the variant changes (a shadow mode the governor
+        # turns to recompiles the lighting, not the G-buffer's material variants).
         self.variant: dict[str, object] = {}
+        # (files, define) -> whether those files (one program's stages) name the define
+        self._named: dict[tuple[tuple[str, ...], str], bool] = {}
+
+    def __len__(self) -> int:
+        """Programs compiled so far."""
+        return len(self._cache)
+
+    def _variant_for(self, *files: str) -> dict[str, object]:
+        """The renderer-wide defines that ``files`` (one program's stages) name."""
+        out: dict[str, object] = {}
+        for k, v in self.variant.items():
+            named = self._named.get((files, k))
+            if named is None:
+                text = "\n".join(assemble(f).text for f in files)
+                named = self._named[(files, k)] = bool(re.search(rf"\b{re.escape(k)}\b", text))
+            if named:
+                out[k] = v
+        return out
 
     def program(
         self, vertex: str, fragment: str, defines: dict[str, object] | None = None
     ) -> moderngl.Program:
-        defines = {**self.variant, **(defines or {})}
+        defines = {**self._variant_for(vertex, fragment), **(defines or {})}
         key = ("program", vertex, fragment, tuple(sorted(defines.items())))
         if key not in self._cache:
             vs = assemble(vertex, with_constants(defines))
@@ -160,7 +181,7 @@ class ShaderLibrary:
     def compute(
         self, name: str, defines: dict[str, object] | None = None
     ) -> moderngl.ComputeShader:
-        defines = {**self.variant, **(defines or {})}
+        defines = {**self._variant_for(name), **(defines or {})}
         key = ("compute", name, tuple(sorted(defines.items())))
         if key not in self._cache:
             src = assemble(name, with_constants(defines))

@@ -352,6 +352,9 @@ class ShadowPass(RenderPass):
             self._scene = (self._generation,)
             self._drop_all()
             self._bounds = scene_bounds(scene)
+        if frame.warming and not first:  # the maps as they are: none drawn, moved or resized
+            self._bind(res)
+            return
         self.updates = 0
         self.pending = 0
         wanted: dict[int, tuple[int, int]] = {}
@@ -380,6 +383,11 @@ class ShadowPass(RenderPass):
             self._draw(frame, i, lights[i])
         self.pending = max(0, len(dirty) - budget)
         self._upload(wanted)
+        self._bind(res)
+
+    def _bind(self, res: Resources) -> None:
+        """The Shadows block and the atlas (filtered for the mode) for the passes that light;
+        the mask's lights."""
         self.block.bind_to_uniform_block(1)
         if self.atlas is not None:  # hard: one texel per lookup; soft: bilinear comparisons
             f = moderngl.NEAREST if self.mode == MODES["hard"] else moderngl.LINEAR

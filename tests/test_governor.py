@@ -626,3 +626,82 @@ def test_no_shadows_is_the_last_step_taken_and_the_first_given_back():
     restored = [(d.knob, d.value) for d in gov.history if d.action == "restore"]
     first_other = next(r for r in restored if r[0] not in fovea)
     assert first_other == ("shadows", "hard")
+
+
+# -- the knobs' programs, compiled before the governor turns to them ----------------------------
+def lit_scene() -> Scene:
+    """The edge scene with its lamp casting shadows (the shadow modes are programs)."""
+    scene = edge_scene()
+    assert any(light.casts_shadows for light in scene.lights)
+    return scene
+
+
+def test_the_knobs_programs_are_compiled_before_a_walk_needs_them():
+    s = Settings()
+    s.set("render.target_fps", "30")  # the governor on: its knobs may change the programs
+    with OffscreenHost(W, H, s) as h:
+        h.set_scene(lit_scene())
+        h.set_text_image(None)
+        for _ in range(2):
+            h.draw(frame_of(h))
+        reachable = h.renderer.governor.program_variants(h.settings)
+        # Every pair of shadow mode and coarse lighting the knobs reach, besides the user's.
+        pairs = {(o.get("render.shadows", "soft"), o.get("cps.mode", "none")) for o in reachable}
+        assert pairs == {(m, c) for m in ("soft", "hard", "off") for c in ("none", "cps")} - {
+            ("soft", "none")
+        }
+        assert any(o.get("render.scale", 1.0) < 1.0 for o in reachable)
+        assert any(o.get("render.upscaler") == "bilinear" for o in reachable)
+        for _ in range(len(reachable) + 1):  # one a frame in the window
+            h.draw(frame_of(h))
+        compiled = len(h.renderer.shaders)
+        for key, value in [
+            ("render.shadows", "hard"),
+            ("cps.mode", "cps"),
+            ("render.shadows", "off"),
+            ("render.scale", 0.85),
+            ("render.upscaler", "bilinear"),
+        ]:
+            h.settings.set(key, value)
+            h.renderer.governor = type(h.renderer.governor)()  # fixed: the user's values drawn
+            h.settings.set("render.target_fps", "0")
+            h.draw(frame_of(h))
+            assert len(h.renderer.shaders) == compiled, f"{key}={value} compiled a program"
+        assert not h.renderer.errors
+
+
+def test_without_the_warm_up_a_knobs_first_frame_compiles():
+    s = Settings()
+    s.set("render.target_fps", "0")  # fixed settings: nothing to warm
+    with OffscreenHost(W, H, s) as h:
+        h.set_scene(lit_scene())
+        h.set_text_image(None)
+        for _ in range(3):
+            h.draw(frame_of(h))
+        compiled = len(h.renderer.shaders)
+        h.settings.set("render.shadows", "hard")
+        h.draw(frame_of(h))
+        assert len(h.renderer.shaders) > compiled
+
+
+def test_warm_frames_leave_the_next_picture_and_the_renderers_state_as_they_were():
+    s = Settings()
+    s.set("render.target_fps", "0")
+    s.set("render.exposure_mode", "auto")  # adapting: a warm frame must not step it
+    shots, states = [], []
+    for warm in (False, True):
+        with OffscreenHost(W, H, s) as h:
+            h.set_scene(lit_scene())
+            h.set_text_image(None)
+            for i in range(4):
+                if warm and i == 2:
+                    with h.ctx:
+                        assert h.renderer.warm_variants(frame_of(h), None) == 0
+                    assert len(h.renderer._warmed) > 3
+                img = h.draw(frame_of(h))
+            shots.append(img)
+            r = h.renderer
+            states.append((r.frames, r.exposure_readout(), r.shadows.renders))
+            assert not r.errors
+    assert states[0] == states[1]
+    assert np.array_equal(shots[0], shots[1])

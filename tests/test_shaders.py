@@ -87,3 +87,23 @@ def test_old_opengl_is_refused_with_what_is_missing():
 
     with pytest.raises(GLUnavailableError, match=r"OpenGL 4\.3.*Ancient GPU offers only 3\.3"):
         check(OldContext())  # type: ignore[arg-type]
+
+
+def test_a_renderer_wide_define_rebuilds_only_the_programs_that_name_it():
+    from render.context import create_headless
+
+    ctx = create_headless()
+    with ctx:
+        lib = ShaderLibrary(ctx)
+        lib.variant["SHADOW_FILTER"] = 2
+        gbuffer = lib.program("geometry.vert.glsl", "gbuffer.frag.glsl")
+        lit = lib.program("fullscreen.vert.glsl", "lighting.frag.glsl")
+        lib.variant["SHADOW_FILTER"] = 1  # the governor's hard shadows
+        assert lib.program("geometry.vert.glsl", "gbuffer.frag.glsl") is gbuffer
+        hard = lib.program("fullscreen.vert.glsl", "lighting.frag.glsl")
+        assert hard is not lit  # the lighting samples the shadows: another program
+        lib.variant["SHADOW_FILTER"] = 2
+        assert lib.program("fullscreen.vert.glsl", "lighting.frag.glsl") is lit
+        assert len(lib) == 3
+        lib.release()
+    ctx.release()
