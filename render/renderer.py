@@ -20,10 +20,11 @@ import numpy as np
 from app.ambient import AmbientEstimate, AmbientProbe, probe_for
 from app.camera import jittered
 from app.frame import FrameInput
-from app.governor import LOD_ERRORS, Governor, apply_overrides, program_key
+from app.governor import FULL_QUALITY, LOD_ERRORS, Governor, apply_overrides, program_key
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.raycast import RayCaster
+from app.refine import refine_on
 from app.scene import Light, Scene
 from app.settings import Settings
 from app.sky import scene_sky, sun_light
@@ -105,6 +106,24 @@ class _Pass(Generic[P]):
 
     def __get__(self, renderer: Renderer, owner: type | None = None) -> P:
         return cast(P, renderer.pass_named(self.name))
+
+
+def refined_settings(s: Settings) -> Settings:
+    """A refining frame's settings (:meth:`Renderer.frame_settings`): full-rate shading and
+    the finest textures."""
+    return dataclasses.replace(
+        s,
+        cps=dataclasses.replace(s.cps, mode="none"),
+        tcr=dataclasses.replace(s.tcr, enabled=False, tint=False),
+    )
+
+
+def _frame_key(settings: Settings, refining: bool) -> tuple:
+    """The programs a frame of these (the frame's own) settings draws: program_key and
+    whether it refines (the running mean's programs, full-rate shading, no texture levels)."""
+    if refining and str(settings.render.refine) != "off":
+        return (*program_key(refined_settings(settings)), True)
+    return (*program_key(settings), False)
 
 
 #: The warm frames' eyes (Renderer.warm_variants): this fraction of a side of the view's,
@@ -260,11 +279,7 @@ class Renderer:
         s = self.settings
         if not (frame.refining and str(s.render.refine) != "off"):
             return s
-        return dataclasses.replace(
-            s,
-            cps=dataclasses.replace(s.cps, mode="none"),
-            tcr=dataclasses.replace(s.tcr, enabled=False, tint=False),
-        )
+        return refined_settings(s)
 
     def _warm_up(self) -> None:
         """Compile every shader variant now, so the first frames do not stall."""
@@ -481,7 +496,8 @@ class Renderer:
         A program's first frame compiles it: on llvmpipe with a cold shader cache, 0.3-1 s
         for hard shadows or coarse lighting, a stall in the walk the governor meant to keep
         smooth. Drawn from the scene's second frame on (the shadow maps and the mask exist
-        then, so a warm frame takes a real frame's programs), one a frame in the window.
+        then, so a warm frame takes a real frame's programs), one a frame in the window;
+        with refinement on, a refining frame at full quality too (the first still frame).
         The warm frames leave the exposure, the shadow maps, the frame count and the
         governor as they were; a refinement in progress starts again."""
         user = self.settings
@@ -491,12 +507,15 @@ class Renderer:
         done = (scene, program_key(user))
         if self._warm_done == done:  # every frame: nothing new unless the user's key changed
             return 0
-        todo: dict[tuple, Settings] = {}
-        for overrides in self.governor.program_variants(user):
-            settings = apply_overrides(user, overrides)
-            key = program_key(settings)
+        todo: dict[tuple, tuple[Settings, bool]] = {}
+        variants = self.governor.program_variants(user)
+        candidates = [(apply_overrides(user, o), False) for o in variants]
+        if refine_on(user.render.refine, self.display_hz):  # standing still: full quality
+            candidates.append((apply_overrides(user, FULL_QUALITY), True))
+        for settings, refining in candidates:
+            key = _frame_key(settings, refining)
             if key not in self._warmed:
-                todo.setdefault(key, settings)
+                todo.setdefault(key, (settings, refining))
         if not todo:
             self._warm_done = done
             return 0
@@ -510,15 +529,17 @@ class Renderer:
         )
         refine = self._by_name.get("refine")
         was_refining = isinstance(refine, RefinePass) and refine.valid
+        warm_refine = any(r for _, (_, r) in items)
         kept = (self.frames, self._exposure_scale, self.refine_restarted, self._refine_dropped)
         color = self.ctx.texture((2 * w, h), 4)
         out = self.ctx.framebuffer([color])
         try:
-            for key, settings in items:
+            for key, (settings, refining) in items:
                 self.settings = settings
+                drawn = dataclasses.replace(small, refining=True, sample=0) if refining else small
                 try:
                     out.use()
-                    self._render(small, out, (0, 0), None, user, warming=True)
+                    self._render(drawn, out, (0, 0), None, user, warming=True)
                 finally:
                     self.settings = user
                 self._warmed.add(key)
@@ -526,7 +547,7 @@ class Renderer:
             out.release()
             color.release()
             self.frames, self._exposure_scale, self.refine_restarted, self._refine_dropped = kept
-            if was_refining:
+            if was_refining or warm_refine:
                 self._forget_refinement()  # the warm frames drew over its targets
         return len(todo) - len(items)
 
@@ -628,7 +649,7 @@ class Renderer:
         self.frames += 1
         if not warming:
             self._drawn = self.gpu_scene
-            self._warmed.add(program_key(settings))
+            self._warmed.add(_frame_key(settings, ctx.refining))
 
     def cps_stats(self) -> dict:
         """Share of pixels per detail level and lighting evaluations, from the last frame's

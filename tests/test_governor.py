@@ -3,6 +3,8 @@ render scale and its upscaler."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -639,6 +641,7 @@ def lit_scene() -> Scene:
 def test_the_knobs_programs_are_compiled_before_a_walk_needs_them():
     s = Settings()
     s.set("render.target_fps", "30")  # the governor on: its knobs may change the programs
+    s.set("render.refine", "on")  # and standing still refines at full quality
     with OffscreenHost(W, H, s) as h:
         h.set_scene(lit_scene())
         h.set_text_image(None)
@@ -652,9 +655,12 @@ def test_the_knobs_programs_are_compiled_before_a_walk_needs_them():
         }
         assert any(o.get("render.scale", 1.0) < 1.0 for o in reachable)
         assert any(o.get("render.upscaler") == "bilinear" for o in reachable)
-        for _ in range(len(reachable) + 1):  # one a frame in the window
+        for _ in range(len(reachable) + 2):  # one a frame in the window
             h.draw(frame_of(h))
         compiled = len(h.renderer.shaders)
+        still = dataclasses.replace(frame_of(h), refining=True, sample=0, refine_target=16)
+        h.draw(still)
+        assert len(h.renderer.shaders) == compiled, "the first refining frame compiled"
         for key, value in [
             ("render.shadows", "hard"),
             ("cps.mode", "cps"),
