@@ -42,6 +42,7 @@ from app.progress import LoadCancelled, Progress
 from app.scene import Scene
 from app.scene_builder import SceneBuilder
 from app.settings import SceneSettings
+from app.tessellate import MAX_EDGE_M, refine_scene
 from app.trimesh_files import trimesh_load
 
 log = logging.getLogger(__name__)
@@ -58,6 +59,9 @@ class LoadOptions:
     unit_scale: float | None = None  # metres per file unit; None: auto (the file's own units)
     max_texture_px: int = 8192  # longest texture side kept; larger ones are downscaled
     max_memory_mb: int = 8192  # a file needing more than this for geometry and textures is refused
+    # Edges longer than this (metres) are split for the per-vertex light (app.tessellate);
+    # 0: the file's triangles as they are (the reader's tests count them).
+    split_edges_m: float = MAX_EDGE_M
 
     @classmethod
     def from_settings(cls, s: SceneSettings) -> LoadOptions:
@@ -117,6 +121,8 @@ def _load(p: Path, options: LoadOptions, progress: Progress) -> Scene:
             f"Cannot show '{p.name}': none of its triangles are valid "
             "(every vertex position is broken or every triangle is flat)."
         )
+    if options.split_edges_m > 0:  # a vertex every half metre for the light kept per vertex
+        scene = refine_scene(scene, options.split_edges_m)
     progress.report(0.85, "Finding where to stand")
     scene = finish_scene(scene, options.unit_scale is None, progress)
     # Chunks and simplified levels for the renderer (app.lod), from the cache when it has them.

@@ -98,7 +98,9 @@ def resolve(
     """A built-in scene by name, else a model file (raises SceneLoadError if unusable)."""
     key = str(name_or_path)
     if key in BUILTIN:
-        return BUILTIN[key]()
+        from app.tessellate import refine_scene
+
+        return refine_scene(BUILTIN[key]())  # as a file's: long edges split
     from app.loaders import load_scene
 
     return load_scene(Path(key).expanduser(), options, progress)

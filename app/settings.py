@@ -228,9 +228,9 @@ class RenderSettings:
         "off",
         "Darkens the even ambient light in corners, creases and under furniture, where "
         "light from the room reaches less. Worked out from the picture each frame, or once "
-        "for the whole model (a few seconds after it opens; rooms built of large flat pieces "
-        "then stay even). Off while light bouncing from the lamps is on: it darkens those "
-        "places itself.",
+        "for the whole model (a few seconds after it opens, every half metre of a surface "
+        "at least). Off while light bouncing from the lamps is on: it darkens those places "
+        "itself.",
         label="Shade corners and creases",
         paper="Ambient occlusion: screen-space (SSAO) or baked per vertex",
         choices=("off", "screen", "baked"),

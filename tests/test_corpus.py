@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.loaders import SceneLoadError, load_scene
+from app.loaders import SceneLoadError
 from app.scene import Scene
 from app.trimesh_files import trimesh_load
 from tests import corpus
@@ -139,7 +139,7 @@ def test_command_line_end_to_end(name: str, cases: dict[str, corpus.Case], tmp_p
     assert proc.returncode >= 0, f"killed by signal {-proc.returncode}"
     res = {"rc": proc.returncode, "stderr": proc.stderr, "png": out.is_file()}
     if proc.returncode == 0:
-        res["tris"] = load_scene(case.path).triangle_count
+        res["tris"] = corpus.read_scene(case.path).triangle_count
     outcome, detail = corpus.classify(case, res)
     assert outcome == END_TO_END[name], (outcome, detail, proc.stderr[-2000:])
 
@@ -155,7 +155,7 @@ def _tris(scene: Scene) -> np.ndarray:
 
 def _refused(path: Path, *words: str) -> str:
     with pytest.raises(SceneLoadError) as err:
-        load_scene(path)
+        corpus.read_scene(path)
     msg = str(err.value)
     assert path.name in msg and "unexpected" not in msg, msg
     for w in words:
@@ -168,7 +168,7 @@ def test_obj_short_vertex_line_keeps_the_indices(cases: dict[str, corpus.Case]) 
     notes: list[str] = []
     trimesh_load(path, warnings=notes)
     assert any("fewer than 3 coordinates" in n and "line 2" in n for n in notes), notes
-    scene = load_scene(path)
+    scene = corpus.read_scene(path)
     assert scene.triangle_count == 2
     # the two triangles share the edge from vertex 1 to vertex 3 and stand at right angles
     tris = _tris(scene)
@@ -180,7 +180,7 @@ def test_obj_short_vertex_line_keeps_the_indices(cases: dict[str, corpus.Case]) 
 def test_obj_face_using_the_short_vertex_is_dropped(tmp_path: Path) -> None:
     path = tmp_path / "short.obj"
     path.write_text("v 0 0 0\nv 1\nv 1 0 0\nv 0 1 0\nf 1 3 4\nf 2 3 4\n")
-    scene = load_scene(path)
+    scene = corpus.read_scene(path)
     assert scene.triangle_count == 1
     assert any("dropped" in w for w in scene.warnings), scene.warnings
 
@@ -200,13 +200,13 @@ def test_obj_faces_past_the_vertices_are_dropped(
     notes: list[str] = []
     trimesh_load(cases[name].path, warnings=notes)
     assert any("dropped 1 face" in n for n in notes), notes
-    assert load_scene(cases[name].path).triangle_count == tris
+    assert corpus.read_scene(cases[name].path).triangle_count == tris
 
 
 def test_obj_uv_index_past_the_end_keeps_the_face(cases: dict[str, corpus.Case]) -> None:
     notes: list[str] = []
     trimesh_load(cases["obj-face-uv-missing"].path, warnings=notes)
-    assert load_scene(cases["obj-face-uv-missing"].path).triangle_count == 1
+    assert corpus.read_scene(cases["obj-face-uv-missing"].path).triangle_count == 1
 
 
 @pytest.mark.parametrize(
@@ -221,14 +221,14 @@ def test_obj_uv_index_past_the_end_keeps_the_face(cases: dict[str, corpus.Case])
     ],
 )
 def test_latin1_text_loads(name: str, cases: dict[str, corpus.Case]) -> None:
-    scene = load_scene(cases[name].path)
+    scene = corpus.read_scene(cases[name].path)
     assert scene.triangle_count == cases[name].base_tris
 
 
 @pytest.mark.parametrize("name", ["obj-latin1-mtl-utf8-names", "obj-latin1-mtl-latin1-names"])
 def test_latin1_obj_keeps_its_mtl_and_texture(name: str, cases: dict[str, corpus.Case]) -> None:
     """A Windows export: the OBJ and MTL in cp1252, the MTL and texture names accented."""
-    scene = load_scene(cases[name].path)
+    scene = corpus.read_scene(cases[name].path)
     assert scene.triangle_count == 1
     mat = scene.materials[scene.meshes[0].material]
     assert mat.texture is not None, (mat, scene.warnings)
@@ -236,8 +236,8 @@ def test_latin1_obj_keeps_its_mtl_and_texture(name: str, cases: dict[str, corpus
 
 
 def test_obj_in_utf16_and_with_old_mac_line_ends_loads(cases: dict[str, corpus.Case]) -> None:
-    assert load_scene(cases["obj-utf16"].path).triangle_count == 1
-    assert load_scene(cases["obj-cr-only"].path).triangle_count == 1
+    assert corpus.read_scene(cases["obj-utf16"].path).triangle_count == 1
+    assert corpus.read_scene(cases["obj-cr-only"].path).triangle_count == 1
 
 
 @pytest.mark.parametrize("name", ["ply-wrong-byte-order-le-data", "ply-wrong-byte-order-be-data"])
@@ -247,7 +247,7 @@ def test_ply_in_the_wrong_byte_order_is_read_the_other_way(
     notes: list[str] = []
     trimesh_load(cases[name].path, warnings=notes)
     assert any("byte order" in n for n in notes), notes
-    scene = load_scene(cases[name].path)
+    scene = corpus.read_scene(cases[name].path)
     assert scene.triangle_count == 2
     tris = _tris(scene)
     assert np.ptp(tris.reshape(-1, 3), axis=0).max() == pytest.approx(1.0, rel=1e-5)
@@ -260,7 +260,7 @@ def test_ply_faces_past_the_vertices_are_dropped(name: str, cases: dict[str, cor
     notes: list[str] = []
     trimesh_load(cases[name].path, warnings=notes)
     assert any("dropped 1 face" in n for n in notes), notes
-    assert load_scene(cases[name].path).triangle_count == 1
+    assert corpus.read_scene(cases[name].path).triangle_count == 1
 
 
 @pytest.mark.parametrize(
@@ -321,7 +321,7 @@ def test_obj_over_the_memory_limit_is_refused(tmp_path: Path) -> None:
 
 
 def _loaded(case: corpus.Case) -> Scene:
-    scene = load_scene(case.path)
+    scene = corpus.read_scene(case.path)
     return scene
 
 

@@ -7,6 +7,7 @@ naming what was dropped, or the refusal naming the file and the problem.
 from __future__ import annotations
 
 import base64
+import dataclasses
 import io
 import json
 import struct
@@ -19,7 +20,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.loaders import LoadOptions, SceneLoadError, load_scene
+from app import loaders
+from app.loaders import LoadOptions, SceneLoadError
 from app.progress import LoadCancelled, Progress
 from app.scene import Scene
 
@@ -36,6 +38,14 @@ _COMPONENT = {
     np.dtype(np.float32): 5126,
 }
 _TYPE = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
+
+
+def load_scene(path, options: LoadOptions | None = None, progress=None):
+    """The file's scene with its own triangles, as read (the loader's split of long edges
+    for the light kept per vertex left out: tests/test_tessellate.py tests it)."""
+    return loaders.load_scene(
+        path, dataclasses.replace(options or LoadOptions(), split_edges_m=0.0), progress
+    )
 
 
 class Gltf:

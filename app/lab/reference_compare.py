@@ -69,6 +69,7 @@ FEATURES: tuple[Feature, ...] = (
     Feature("shadows", "Shadows", {"render.shadows": "soft"}, {"render.shadows": "off"}),
     Feature("sky", "Sun and sky", {"sky.enabled": True}, {"sky.enabled": False}, True),
     Feature("ao", "Ambient occlusion", {"render.ao": "screen"}, {"render.ao": "off"}),
+    Feature("ao_baked", "Ambient occlusion, baked", {"render.ao": "baked"}, {"render.ao": "off"}),
     Feature(
         "normal_maps", "Normal maps", {"render.normal_maps": True}, {"render.normal_maps": False}
     ),
