@@ -157,7 +157,8 @@ def _split_all(meshes: list[Mesh], max_edge: float, max_triangles: int | None) -
     for _ in range(MAX_ROUNDS):
         step = {}
         for i in active:
-            out = split_round(*(states[i] or _state(meshes[i])), max_edge)
+            pos, tri, attrs = states[i] or _state(meshes[i])
+            out = split_round(pos, tri, attrs, max_edge)
             if out is not None:
                 step[i] = out
         if not step:
