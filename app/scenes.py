@@ -98,9 +98,14 @@ def resolve(
     """A built-in scene by name, else a model file (raises SceneLoadError if unusable)."""
     key = str(name_or_path)
     if key in BUILTIN:
+        from app.lod import attach_lods
         from app.tessellate import refine_scene
 
-        return refine_scene(BUILTIN[key]())  # as a file's: long edges split
+        scene = BUILTIN[key]()
+        refined = refine_scene(scene)  # as a file's: long edges split, and the split meshes
+        split = [m for m, o in zip(refined.meshes, scene.meshes, strict=True) if m is not o]
+        attach_lods(split)  # get levels (a wall's grid is two triangles again far away)
+        return refined
     from app.loaders import load_scene
 
     return load_scene(Path(key).expanduser(), options, progress)
