@@ -111,6 +111,7 @@ def usable(feature: Feature, settings: Settings) -> str | None:
 
 
 SETTLE_FRAMES = 3  # frames drawn per variant in a comparison, the last one kept
+AO_BAKE_WAIT_S = 300.0  # the baked occlusion (render.ao=baked) is waited for, as the sky
 
 
 def our_frames(
@@ -123,7 +124,8 @@ def our_frames(
     are changed in place between frames, as the panels change them. Each variant's picture is
     the settled one, as a user sees it after a moment at the view: the sky's visibility baked
     (it lights the room through the windows only once baked), every shadow map drawn (the
-    per-frame budget of shadow redraws lifted) and the last of ``SETTLE_FRAMES`` frames."""
+    per-frame budget of shadow redraws lifted), the baked occlusion done, and the last of
+    ``SETTLE_FRAMES`` frames."""
     from app.paths import FIXED_DT
     from app.session import Session
     from render.offscreen import OffscreenHost  # GL only when a comparison runs
@@ -145,6 +147,11 @@ def our_frames(
             if live.sky.enabled and host.renderer.gpu_scene is not None:
                 with host.ctx:
                     host.renderer.daylight.wait_for_visibility(host.renderer.gpu_scene)
+            if live.render.ao == "baked" and host.renderer.gpu_scene is not None:
+                host.draw(session.frame_input(*size))  # the first draw starts the bake
+                bake = host.renderer.gpu_scene.ao_bake
+                if bake is not None:  # the settling frames then upload it
+                    bake.wait(AO_BAKE_WAIT_S)
             for _ in range(SETTLE_FRAMES):
                 session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
                 session.eye_size = size
