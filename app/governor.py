@@ -59,6 +59,7 @@ __all__ = [
     "measured_knobs",
     "program_key",
     "step_weight",
+    "still_overrides",
     "target_fps",
 ]
 
@@ -106,6 +107,16 @@ FULL_QUALITY: dict[str, Any] = {
     "render.shadows": "soft",
     "render.upscaler": "edge",
 }
+
+
+def still_overrides(user: Settings) -> dict[str, Any]:
+    """The governor's overrides while the picture refines: :data:`FULL_QUALITY`, but shadows
+    the user turned off stay off (the same room lit alike, as ``app.quality.full_quality``
+    has it; hard shadows, the governor's or the user's, become soft)."""
+    out = {k: v for k, v in FULL_QUALITY.items() if _exists(user, k)}
+    if _exists(user, "render.shadows") and user.render.shadows == "off":
+        out.pop("render.shadows", None)
+    return out
 
 
 def target_fps(settings: Settings, display_hz: float | None) -> float:
@@ -337,7 +348,7 @@ class Governor:
             self.overrides = {}
             return self.overrides
         if self.refining:  # standing still: full quality; the walking state stays
-            self.overrides = {k: v for k, v in FULL_QUALITY.items() if _exists(user, k)}
+            self.overrides = still_overrides(user)
             return self.overrides
         if not math.isfinite(frame_ms) or frame_ms <= 0:
             self.overrides = self._overrides(user)

@@ -20,7 +20,13 @@ import numpy as np
 from app.ambient import AmbientEstimate, AmbientProbe, probe_for
 from app.camera import jittered
 from app.frame import FrameInput
-from app.governor import FULL_QUALITY, LOD_ERRORS, Governor, apply_overrides, program_key
+from app.governor import (
+    LOD_ERRORS,
+    Governor,
+    apply_overrides,
+    program_key,
+    still_overrides,
+)
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.raycast import RayCaster
@@ -511,7 +517,7 @@ class Renderer:
         variants = self.governor.program_variants(user)
         candidates = [(apply_overrides(user, o), False) for o in variants]
         if refine_on(user.render.refine, self.display_hz):  # standing still: full quality
-            candidates.append((apply_overrides(user, FULL_QUALITY), True))
+            candidates.append((apply_overrides(user, still_overrides(user)), True))
         for settings, refining in candidates:
             key = _frame_key(settings, refining)
             if key not in self._warmed:

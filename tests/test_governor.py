@@ -292,6 +292,18 @@ def test_refining_returns_full_quality_and_keeps_the_walking_state():
     assert gov.observe(user, passes, ms, refining=False) == walking_knobs  # at once
 
 
+def test_standing_still_leaves_shadows_the_user_turned_off_off():
+    user = walking("30")
+    user.set("render.shadows", "off")
+    gov, _, history = run(user, 30)
+    passes, ms = synthetic(user, history[-1])
+    still = apply_overrides(user, gov.observe(user, passes, ms, refining=True))
+    assert still.render.shadows == "off" and still.render.scale == 1.0
+    user.set("render.shadows", "hard")  # the user's hard edges: full quality is soft
+    still = apply_overrides(user, gov.observe(user, passes, ms, refining=True))
+    assert still.render.shadows == "soft"
+
+
 def test_panel_words_name_the_budget_and_the_reason():
     user = walking("30")
     gov, _, _ = run(user, 20)
