@@ -39,6 +39,7 @@ from app.governor_model import (
     measured_knobs,
     step_weight,
 )
+from app.governor_programs import program_key, program_variants
 from app.settings import Settings, SettingsError
 
 __all__ = [
@@ -720,38 +721,9 @@ class Governor:
         return lines
 
     def program_variants(self, user: Settings) -> list[dict[str, Any]]:
-        """Overrides that between them draw every shader program the governor's knobs can
-        turn to from ``user`` (the renderer draws each once, small, before a walk needs it:
-        a program's first frame compiles it, 0.3-1 s on llvmpipe with a cold shader cache).
-
-        Shadows and coarse lighting choose the lighting's programs together, so every pair
-        of their values is one override; the render scale and the upscaler choose the present
-        pass's alone, so their values ride along those, in turn. The user's own values
-        (``{}``) are the frame drawn anyway and are left out."""
-        reach: dict[str, list[dict[str, Any]]] = {}
-        for _knob, steps in self._knobs(user):
-            for step in steps:
-                keys = [k for k in step if k in PROGRAM_KEYS]
-                if not keys:
-                    continue
-                kind = PROGRAM_KEYS[keys[0]]
-                options = reach.setdefault(kind, [{}])
-                seen = [_program_class(user, o) for o in options]
-                if _program_class(user, step) not in seen:
-                    options.append(dict(step))
-        lighting = [
-            {**a, **b} for a in reach.get("lighting", [{}]) for b in reach.get("coarse", [{}])
-        ]
-        present = [
-            {**a, **b} for a in reach.get("scale", [{}]) for b in reach.get("upscaler", [{}])
-        ]
-        count = max(len(lighting), len(present))
-        out = []
-        for i in range(count):
-            combo = {**lighting[i % len(lighting)], **present[i % len(present)]}
-            if combo and combo not in out:
-                out.append(combo)
-        return out
+        """Overrides that between them draw every shader program the knobs can turn to
+        (:func:`app.governor_programs.program_variants`)."""
+        return program_variants(user, [steps for _knob, steps in self._knobs(user)])
 
     def summary(self) -> dict[str, Any]:
         """For the benchmark: the changes made and the knobs at the end."""
@@ -799,38 +771,6 @@ def _value_at(user: Settings, knob: Knob, j: int) -> Any:
     if j > 0:
         return knob.usable_steps(user)[j - 1][knob.key]
     return user.cps.mode if knob.key == "cps.max_level" else user.get(knob.key)
-
-
-#: The knob keys whose values choose shader programs (the rest are uniforms or index ranges),
-#: each with what it chooses (:meth:`Governor.program_variants`).
-PROGRAM_KEYS = {
-    "render.shadows": "lighting",
-    "cps.mode": "coarse",
-    "render.scale": "scale",
-    "render.upscaler": "upscaler",
-}
-
-
-def program_key(settings: Settings) -> tuple:
-    """What of a frame's settings picks the programs the governor's knobs change (with the
-    path and the texture levels' mode they apply to): two frames of one key draw the same."""
-    t = settings.tcr
-    return (settings.render.path, t.enabled, t.mode, t.tint, *_program_class(settings, {}))
-
-
-def _program_class(user: Settings, step: dict[str, Any]) -> tuple:
-    """What of ``step`` (over the user's values) picks programs: the shadow mode, CPS on or
-    off, drawn at full size or enlarged, the upscaler."""
-
-    def value(key: str) -> Any:
-        return step[key] if key in step else user.get(key)
-
-    return (
-        value("render.shadows"),
-        value("cps.mode") == "cps",
-        float(value("render.scale")) < 1.0,
-        value("render.upscaler"),
-    )
 
 
 def _exists(settings: Settings, key: str) -> bool:
