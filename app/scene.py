@@ -163,10 +163,18 @@ class Scene:
     # The ambient estimate's scene part (app.ambient.probe_for), found once: the window's loader
     # finds it on its worker thread so that the first frame does not wait for it.
     ambient_probe: Any = field(default=None, repr=False, compare=False)
+    # The model's own triangles when loading split long edges (app.tessellate); 0: as drawn.
+    model_triangles: int = 0
 
     @property
     def triangle_count(self) -> int:
         return sum(m.triangle_count for m in self.meshes)
+
+    @property
+    def model_triangle_count(self) -> int:
+        """The triangles the model was made of (what a designer's tool reports), before the
+        split of long edges for the per-vertex light."""
+        return self.model_triangles or self.triangle_count
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         if not self.meshes:

@@ -185,7 +185,13 @@ def refine_scene(scene: Scene, max_edge: float = MAX_EDGE_M) -> Scene:
     meshes = _split_all(list(scene.meshes), max_edge, budget)
     if all(a is b for a, b in zip(meshes, scene.meshes, strict=True)):
         return scene
-    return dataclasses.replace(scene, meshes=meshes, ray_caster=None, ambient_probe=None)
+    return dataclasses.replace(
+        scene,
+        meshes=meshes,
+        ray_caster=None,
+        ambient_probe=None,
+        model_triangles=scene.model_triangle_count,
+    )
 
 
 def _area(mesh: Mesh) -> float:

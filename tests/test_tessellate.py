@@ -126,3 +126,19 @@ def test_the_sky_per_vertex_finds_the_window_on_a_floor_of_one_quad():
     near, far = floor_sky(refine_scene(scene))
     assert near > 0.05 and near > 3.0 * far, (near, far)
     assert floor_sky(scene)[0] == 0.0  # one quad: no vertex near the window at all
+
+
+def test_the_status_bar_counts_the_models_own_triangles_not_the_split():
+    """A designer compares the count with their modelling tool's: the split's extra triangles
+    are named in the tooltip, not in the count."""
+    from ui.main_window import scene_label, scene_tip
+
+    floor = quad("floor", (-4, 0, -3), (8, 0, 0), (0, 0, 6), (0, 1, 0))
+    scene = Scene("room", [floor], [Material("m")], [], [], Viewpoint((0, 1.6, 0)))
+    refined = refine_scene(scene).sanitized()
+    assert refined.triangle_count > scene.triangle_count == 2
+    assert refined.model_triangle_count == 2
+    assert scene_label(refined) == "room · 2 triangles"
+    assert f"{refined.triangle_count:,} triangles drawn" in scene_tip(refined)
+    assert scene_tip(scene) == ""
+    assert scene_label(None) == ""

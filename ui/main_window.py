@@ -520,7 +520,8 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
             "fps": self.view.timer.fps,
             "gazed": s.gazed_object(),
             "resident_mb": self.view.texture_resident_bytes() / 1e6,
-            "scene": f"{scene.name} · {scene.triangle_count:,} tris" if scene else "",
+            "scene": scene_label(scene),
+            "scene_tip": scene_tip(scene),
             "exposure": self.view.renderer.exposure_readout() if self.view.renderer else "",
         }
 
@@ -536,6 +537,21 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         self._loader.shutdown(wait=False, cancel_futures=True)
         self.photon_cache.close()
         super().closeEvent(event)
+
+
+def scene_label(scene: Scene | None) -> str:
+    """The status bar's scene: its name and the model's own triangle count."""
+    return f"{scene.name} · {scene.model_triangle_count:,} triangles" if scene else ""
+
+
+def scene_tip(scene: Scene | None) -> str:
+    """What the count leaves out: the triangles drawn after long edges were split."""
+    if scene is None or scene.triangle_count == scene.model_triangle_count:
+        return ""
+    return (
+        f"{scene.triangle_count:,} triangles drawn: long edges are split so that the light "
+        "kept per point of a surface (the sky through a window) has points to land on"
+    )
 
 
 def app_icon() -> QIcon:

@@ -372,4 +372,5 @@ class EvaluationBar(QWidget):
         self.labels["fps"].setText(f"{info.get('fps', 0.0):.1f} fps")
         self.labels["gazed"].setText(f"Looking at: {info.get('gazed') or '-'}")
         self.labels["scene"].setText(info.get("scene", ""))
+        self.labels["scene"].setToolTip(info.get("scene_tip", ""))
         self.labels["exposure"].setText(info.get("exposure", ""))
