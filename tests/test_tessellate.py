@@ -139,6 +139,7 @@ def test_the_status_bar_counts_the_models_own_triangles_not_the_split():
     assert refined.triangle_count > scene.triangle_count == 2
     assert refined.model_triangle_count == 2
     assert scene_label(refined) == "room · 2 triangles"
-    assert f"{refined.triangle_count:,} triangles drawn" in scene_tip(refined)
-    assert scene_tip(scene) == ""
+    assert f"{refined.triangle_count:,} drawn" in scene_tip(refined)
+    assert "drawn" not in scene_tip(scene)
+    assert "2 triangles in the model" in scene_tip(scene)
     assert scene_label(None) == ""

@@ -545,13 +545,17 @@ def scene_label(scene: Scene | None) -> str:
 
 
 def scene_tip(scene: Scene | None) -> str:
-    """What the count leaves out: the triangles drawn after long edges were split."""
-    if scene is None or scene.triangle_count == scene.model_triangle_count:
-        return ""
-    return (
-        f"{scene.triangle_count:,} triangles drawn: long edges are split so that the light "
-        "kept per point of a surface (the sky through a window) has points to land on"
-    )
+    """The scene label's tooltip: where the model came from, and the triangles drawn after
+    long edges were split when there are more."""
+    if scene is None:
+        return "The model shown, and how many triangles it is made of"
+    tip = f"{scene.source or scene.name}: {scene.model_triangle_count:,} triangles in the model"
+    if scene.triangle_count != scene.model_triangle_count:
+        tip += (
+            f"; {scene.triangle_count:,} drawn: long edges are split so that the light kept "
+            "per point of a surface (the sky through a window) has points to land on"
+        )
+    return tip
 
 
 def app_icon() -> QIcon:
