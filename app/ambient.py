@@ -24,7 +24,11 @@ over the scene by area, and takes its mean over what a person standing in the ro
    the mean that the picture's ambient term then has. The sun's first bounce is found
    exactly where the rays hit (its patch on the floor is small and very bright); a hit is
    never given a face that sees nothing (a wall's outer face in the sun and the open sky,
-   across a thin wall from the one the ray met).
+   across a thin wall from the one the ray met). **The lamps' light past their range**
+   (what the renderer's range window leaves undrawn, ``app.scene.range_window``) joins the
+   even light of each face it reaches: a path tracer has no range (the corridor's lamps leave
+   23 % of their light there). The bounce's colour (:meth:`AmbientProbe._chroma`) takes the
+   lamps', the sun's and the sky's colour as well as the surfaces' (warm lamps, a warm room).
 3. **By the way a surface faces** (``AmbientEstimate.gradient``): the weighted least-squares
    slope of those faces' ``E_ind / pi`` against their normals, so that the shaders give a floor
    that sees the lamp-lit ceiling more than the ceiling that sees the darker floor
@@ -68,7 +72,7 @@ from app.ambient_field import (
 )
 from app.photons import _mesh_optics, _scene_geometry
 from app.raycast import RayCaster
-from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff
+from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff, range_window
 from app.sky_light import occluders
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -327,12 +331,24 @@ class AmbientProbe:
         suns = [lt for lt in lights if lt.kind == "directional"]
         lamps = [lt for lt in lights if lt.kind != "directional"]
         e0 = np.zeros(2 * n)
+        e0_rgb = np.zeros((2 * n, 3))  # the same light in colour: what the bounce's colour takes
         e0_suns = np.zeros(2 * n)
+        # The lamps' light past their range, which the renderer does not draw (its range
+        # window, app.scene.range_window): the even light carries it (a path tracer has no
+        # range; the corridor's lamps leave 23 % of their light there).
+        beyond_rgb = np.zeros((2 * n, 3))
         for k, (side, c) in enumerate(zip((1.0, -1.0), self.closure, strict=True)):
-            e = _direct(self.points, self.normal * side, lamps, self.caster, self.eps, True)
+            drawn = np.zeros((n, 3))
+            rgb = _direct_rgb(
+                self.points, self.normal * side, lamps, self.caster, self.eps, True, drawn
+            )
+            beyond_rgb[k::2] = np.maximum(rgb - drawn, 0.0)
+            e = rgb @ LUMA
             if sky_sh is not None:
+                open_share = (1.0 - c)[:, None]
+                rgb = rgb + _sky_irradiance_rgb(self.normal * side, sky_sh) * open_share
                 e = e + _sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)
-            e0[k::2] = e
+            e0[k::2], e0_rgb[k::2] = e, rgb
             if suns:
                 e0_suns[k::2] = _direct(
                     self.points, self.normal * side, suns, self.caster, self.eps
@@ -346,22 +362,22 @@ class AmbientProbe:
         gain = np.where(hit, self.rho[face // 2], 0.0)  # what a bounce keeps on each path
         # The first bounce: the lamps' and the sky's light where the rays hit, from the face
         # standing for each hit; the sun's exactly at the hit (a sharp patch on the floor).
-        sun_hits = np.zeros(gain.shape)
+        sun_hits = np.zeros((*gain.shape, 3))
         if suns:
             at, facing = self.hit_at.reshape(-1, 3), self.hit_normal.reshape(-1, 3)
             met = hit.ravel()
-            lit = np.zeros(len(at))
-            lit[met] = _direct(
+            lit = np.zeros((len(at), 3))
+            lit[met] = _direct_rgb(
                 at[met].astype(np.float64),
                 facing[met].astype(np.float64),
                 suns,
                 self.caster,
                 self.eps,
             )
-            sun_hits = lit.reshape(gain.shape)
-        arriving = e0[face] + sun_hits
+            sun_hits = lit.reshape((*gain.shape, 3))
+        arriving = e0[face] + sun_hits @ LUMA
         first = (gain * arriving).sum(axis=1) / GATHER_RAYS
-        chroma = self._chroma(hit, face, arriving)
+        chroma = self._chroma(hit, face, e0_rgb[face] + sun_hits)
         e0 = e0 + e0_suns
         total = first.copy()
         e = first
@@ -376,6 +392,14 @@ class AmbientProbe:
         if kept > 0.0:  # the bounces left: a geometric tail
             kept = min(kept, MAX_KEPT)
             total += e * kept / (1.0 - kept)
+        beyond = beyond_rgb @ LUMA
+        if beyond.any():  # the even light's colour: the bounce's and the lamps' beyond
+            lit = total + beyond
+            mixed = chroma * total[:, None] + beyond_rgb
+            chroma = np.where(
+                lit[:, None] > 1e-12, mixed / np.maximum(mixed @ LUMA, 1e-12)[:, None], chroma
+            )
+            total = lit
         view = self.seen if len(self.seen) else np.flatnonzero(c > 0.0)
         rho_v = self.rho[view // 2]
         weight = float(rho_v.sum())
@@ -398,16 +422,17 @@ class AmbientProbe:
             seen / (2.0 * n),
             gradient,
             (float(mean_n[0]), float(mean_n[1]), float(mean_n[2])),
-            _occluder_return(self.crease, self.rho[np.arange(2 * n) // 2], e0, total, c),
+            _occluder_return(self.crease, self.rho[np.arange(2 * n) // 2], e0 - beyond, total, c),
             self._by_place(total, c, indirect + (AXES - mean_n) @ np.asarray(gradient), chroma),
         )
 
     def _chroma(self, hit: np.ndarray, face: np.ndarray, arriving: np.ndarray) -> np.ndarray:
         """Each face's bounce light's colour (2 n, 3), its luminance 1: the first
-        ``CHROMA_BOUNCES`` bounces in colour, the surfaces' reflectance taking their colour
-        (the lamps' and the sun's light as white: a wooden floor warms the ceiling)."""
+        ``CHROMA_BOUNCES`` bounces in colour from the light ``arriving`` along each ray
+        (2 n, rays, 3: the lamps', the sun's and the sky's own colour), the surfaces'
+        reflectance taking theirs (a wooden floor warms the ceiling, warm lamps the room)."""
         gain = np.where(hit[..., None], self.rho_rgb[face // 2], 0.0)  # (2 n, rays, 3)
-        e = (gain * arriving[..., None]).sum(axis=1) / GATHER_RAYS
+        e = (gain * arriving).sum(axis=1) / GATHER_RAYS
         total = e.copy()
         for _ in range(CHROMA_BOUNCES - 1):
             e = (gain * e[face]).sum(axis=1) / GATHER_RAYS
@@ -499,11 +524,28 @@ def _direct(
 ) -> np.ndarray:
     """Direct irradiance (lux, luminance of the light's colour) on faces with ``normal``;
     ``whole_lamp``: without the range window (:func:`bounce_falloff`)."""
-    out = np.zeros(points.shape[0])
+    return _direct_rgb(points, normal, lights, caster, eps, whole_lamp) @ LUMA
+
+
+def _direct_rgb(
+    points: np.ndarray,
+    normal: np.ndarray,
+    lights: Sequence[Light],
+    caster: RayCaster,
+    eps: float,
+    whole_lamp: bool = False,
+    drawn: np.ndarray | None = None,
+) -> np.ndarray:
+    """:func:`_direct` in colour (N, 3): each light's colour times its intensity. ``drawn``
+    (N, 3), with ``whole_lamp``: the part the renderer draws (within the range window) is
+    added to it, from the same shadow rays."""
+    out = np.zeros((points.shape[0], 3))
     for light in lights:
-        lum = float(np.asarray(light.color, np.float64) @ LUMA) * float(light.intensity)
-        if not (math.isfinite(lum) and lum > 0.0):
+        rgb = np.asarray(light.color, np.float64).reshape(3) * float(light.intensity)
+        lum = float(rgb @ LUMA)
+        if not (math.isfinite(lum) and lum > 0.0 and np.isfinite(rgb).all()):
             continue
+        rgb = np.maximum(rgb, 0.0)
         if light.kind == "directional":
             d = -np.asarray(light.direction, np.float64)
             d = d / max(float(np.linalg.norm(d)), 1e-12)
@@ -513,8 +555,8 @@ def _direct(
                 continue
             origin = points[lit] + normal[lit] * eps
             dist, _ = caster.cast_many(origin, np.broadcast_to(d, origin.shape))
-            e = np.where(np.isinf(dist), lum * cos[lit], 0.0)
-            out[lit] += e
+            e = np.where(np.isinf(dist), cos[lit], 0.0)
+            out[lit] += e[:, None] * rgb
             continue
         to_l = np.asarray(light.position, np.float64) - points
         d2 = np.einsum("ij,ij->i", to_l, to_l)
@@ -529,7 +571,10 @@ def _direct(
         origin = points[lit] + normal[lit] * eps
         hit, _ = caster.cast_many(origin, ldir[lit])
         seen = hit >= dist_l[lit] - 2.0 * eps
-        out[lit] += np.where(seen, lum * cos[lit] * fall[lit], 0.0)
+        out[lit] += np.where(seen, cos[lit] * fall[lit], 0.0)[:, None] * rgb
+        if drawn is not None and whole_lamp:
+            window = range_window(d2[lit], float(light.range_m))
+            drawn[lit] += np.where(seen, cos[lit] * fall[lit] * window, 0.0)[:, None] * rgb
     return out
 
 
@@ -539,6 +584,14 @@ def _sky_irradiance(normal: np.ndarray, sky_sh: np.ndarray) -> np.ndarray:
 
     white = sh_basis(normal) @ np.asarray(sky_sh, np.float64).reshape(9, 3)
     return math.pi * np.maximum(white @ LUMA, 0.0)
+
+
+def _sky_irradiance_rgb(normal: np.ndarray, sky_sh: np.ndarray) -> np.ndarray:
+    """:func:`_sky_irradiance` in colour (N, 3): the sky's blue for the bounce's colour."""
+    from app.sky_model import sh_basis
+
+    white = sh_basis(normal) @ np.asarray(sky_sh, np.float64).reshape(9, 3)
+    return math.pi * np.maximum(white, 0.0)
 
 
 def _cone(light: Light, to_light: np.ndarray) -> np.ndarray:

@@ -173,13 +173,33 @@ def test_a_red_floor_warms_the_ceiling_above_it():
     assert grey == pytest.approx([1.0, 1.0, 1.0], abs=0.03)
 
 
-def _floored(floor_rgb) -> Scene:
+def test_a_warm_lamp_warms_the_bounce_in_a_white_room():
+    """The bounce takes the lamp's colour as well as the surfaces': a warm lamp (2700 K-ish)
+    in a grey box gives the ceiling a warm bounce, a white lamp a grey one, a blue lamp a
+    blue one; the luminance stays 1 (the level is the luminance estimate's)."""
+
+    def ceiling_colour(lamp_rgb) -> np.ndarray:
+        scene = _floored((0.5, 0.5, 0.5), lamp_rgb)
+        est = estimate_ambient(scene)
+        assert est.by_place is not None
+        return est.by_place.colour_at(np.array([[0.0, HALF[1] - 0.01, 0.0]]))[0]
+
+    warm = ceiling_colour((1.0, 0.87, 0.72))
+    white = ceiling_colour((1.0, 1.0, 1.0))
+    blue = ceiling_colour((0.6, 0.8, 1.0))
+    assert warm[0] > 1.25 * warm[2], warm
+    assert blue[2] > 1.4 * blue[0], blue
+    assert white == pytest.approx([1.0, 1.0, 1.0], abs=0.03)
+    assert float(warm @ [0.2126, 0.7152, 0.0722]) == pytest.approx(1.0, abs=0.02)
+
+
+def _floored(floor_rgb, lamp_rgb=(1.0, 1.0, 1.0)) -> Scene:
     """A white box under a lamp near its ceiling, its floor of colour ``floor_rgb``."""
     walls = _box_walls()
     mats = [Material("white", (0.8, 0.8, 0.8, 1.0)), Material("floor", (*floor_rgb, 1.0))]
     for m in walls:
         m.material = 1 if m.name == "wall1-1" else 0  # the floor
-    lamp = PointLight((0.0, HALF[1] - 0.4, 0.0), (1.0, 1.0, 1.0), 8.0, 1e4)
+    lamp = PointLight((0.0, HALF[1] - 0.4, 0.0), tuple(lamp_rgb), 8.0, 1e4)
     scene = Scene("room", walls, mats, lights=[lamp])
     scene.spawn = Viewpoint((0.0, 0.0, 0.0))
     return scene
@@ -204,3 +224,36 @@ def test_the_frame_shows_the_ceiling_warmed_by_the_red_floor():
         return float(centre[0] / centre[2])
 
     assert red_over_blue(True) > red_over_blue(False) * 1.05
+
+
+def _far_wall(range_m: float) -> tuple[float, float]:
+    """A lamp near one end of the box of range ``range_m``: the frame's luminance at the far
+    wall's centre, and the field's value there."""
+    lamp = PointLight((0.0, 0.0, -HALF[2] + 0.4), (1.0, 1.0, 1.0), 8.0, range_m)
+    scene = _box(0.5, [lamp])
+    scene.spawn = Viewpoint((0.0, 0.0, 0.0))
+    s = Settings()
+    with OffscreenHost(160, 90, s) as host:
+        host.set_scene(scene)
+        cam = StereoCamera(s.stereo)
+        cam.set_pose(scene.spawn.position, 180.0, 0.0)  # looking down +Z
+        host.draw(FrameInput(cam.eyes(*host.eye_size), gaze=(0.5, 0.5)))
+        hdr = host.read_hdr(0)[:, :, :3]
+    h, w = hdr.shape[:2]
+    lum = hdr[h // 2 - 2 : h // 2 + 2, w // 2 - 2 : w // 2 + 2] @ [0.2126, 0.7152, 0.0722]
+    est = estimate_ambient(scene)
+    assert est.by_place is not None
+    wall = est.by_place.lookup(np.array([[0.0, 0.0, HALF[2] - 0.01]]), np.array([[0, 0, -1.0]]))
+    return float(lum.mean()), float(wall[0])
+
+
+def test_a_lamps_light_past_its_range_comes_with_the_even_light():
+    """The renderer stops drawing a lamp at its range (the range window keeps light culling
+    exact); a path tracer does not. The even light carries what lies beyond: with a 2 m range
+    the far wall, 4.6 m from the lamp, gets the lamp's direct light / pi in the field and
+    looks nearly as it does with an unlimited range (without: two thirds as bright)."""
+    lum_whole, field_whole = _far_wall(1e4)
+    lum_short, field_short = _far_wall(2.0)
+    direct = 8.0 / (2.0 * HALF[2] - 0.4) ** 2  # lux, facing the lamp, nothing in between
+    assert field_short - field_whole == pytest.approx(direct / np.pi, rel=0.15)
+    assert 0.85 * lum_whole < lum_short <= lum_whole * 1.02
