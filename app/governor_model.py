@@ -45,6 +45,7 @@ _CATEGORY = {
     "ab_split": "output",
     "overlay": "output",
     "daylight": "fixed",
+    "reflections": "reflections",
 }
 CATEGORIES = (
     "pixels",
@@ -56,6 +57,7 @@ CATEGORIES = (
     "shadows",
     "photons",
     "output",
+    "reflections",
     "fixed",
 )
 # A category not measured yet (CPS while it is off, the full-rate lighting while the user's
@@ -170,6 +172,15 @@ PRIOR_KNOBS: tuple[Knob, ...] = (
         tuple({"tcr.level_bias": n} for n in (1, 2)),
         (0.003, 0.005),
         cheaper_is_higher=True,
+    ),
+    Knob(
+        "reflections",
+        "render.reflections",
+        ({"render.reflections": "off"},),
+        # Measured, not by the study (its reference keeps a run's reflections off, as its
+        # shadows): FLIP 0.028 over the frame, 0.002 in the fovea, on six frames of the
+        # showroom walk at 2 x 640x720 (the floor's sheen of the window and the lamps).
+        (0.034,),
     ),
     Knob(
         "shadows",
@@ -296,5 +307,6 @@ def cost_factors(
         # Enlarging the eyes (tone map at the drawn size, then EASU at the view's) measured
         # 2-2.5x the plain present on llvmpipe; bilinear enlarging about the same as none.
         "output": 1.0 if s >= 0.999 else (2.0 if upscaler == "edge" else 1.0),
+        "reflections": s * s if values.get("render.reflections", "screen") == "screen" else 0.0,
         "fixed": 1.0,
     }

@@ -264,6 +264,16 @@ class RenderSettings:
         step=0.05,
         scale=100.0,
     )
+    reflections: str = _opt(
+        "screen",
+        "Glossy surfaces, such as a varnished floor or a lacquered piano, mirror what lies "
+        "in their reflected direction: the window, the lamps, the sunlit patch. Taken from "
+        "the picture on screen: what is out of view is reflected as the room's even light.",
+        label="Reflections on glossy surfaces",
+        paper="Screen-space reflections (ray march through the depth buffer)",
+        choices=("off", "screen"),
+        choice_labels={"off": "Off", "screen": "From the picture"},
+    )
     overlay: bool = _opt(
         True, "Draws the frames per second in a corner of the view.", label="Show frame rate"
     )

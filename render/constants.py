@@ -120,6 +120,8 @@ TEXTURE_UNITS = {
             "irradiance_cache",  # the photon map's irradiance cache (render/photons.py)
             "shadow_mask",  # the shadow mask (render/shadow_mask.py)
             "ambient_field",  # the even light by place (render/ambient_field.py)
+            "reflect_source",  # the lit picture the reflections read (render/reflections.py)
+            "reflect_half",  # the reflections traced at half size
         )
     )
 }

@@ -66,6 +66,7 @@ from render.passes import (
 from render.photons import PhotonPass
 from render.present import OverlayPass, PresentPass
 from render.refine import RefinePass
+from render.reflections import ReflectionPass
 from render.shaders import ShaderLibrary
 from render.shadow_mask import ShadowMaskPass
 from render.shadows import ShadowPass
@@ -92,6 +93,7 @@ PASS_TYPES: tuple[type[RenderPass], ...] = (
     EmissivePass,
     ForwardPass,
     SkyPass,
+    ReflectionPass,
     BlendPass,
     RefinePass,
     ExposurePass,
@@ -157,6 +159,7 @@ class Renderer:
     refine = _Pass[RefinePass]()
     exposure_meter = _Pass[ExposurePass]()
     sky = _Pass[SkyPass]()
+    reflections = _Pass[ReflectionPass]()
     present = _Pass[PresentPass]()
     ab_split = _Pass[ABSplitPass]()
     overlay = _Pass[OverlayPass]()

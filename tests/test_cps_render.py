@@ -47,6 +47,9 @@ def configure(host: OffscreenHost, **values) -> None:
         if key.startswith(("cps.", "render.", "tcr.")):
             s.set(key, defaults.get(key))
     s.render.overlay = False
+    # Reflections read the lit picture elsewhere on screen (coarse in the periphery): they
+    # would carry CPS's periphery into the fovea's floor, which is not what is compared here.
+    s.render.reflections = "off"
     s.cps.fovea_deg, s.cps.deg_per_level = 8.0, 5.0
     for key, value in values.items():
         s.set(key.replace("__", "."), value)

@@ -49,8 +49,9 @@ def host():
 
 
 BASE = ["present", "overlay"]
-DEFERRED = ["gbuffer", "lighting", "emissive", *BASE]
-CPS = ["gbuffer", "cps_levels", "cps_lighting", "cps_filter", "emissive", *BASE]
+# render.reflections (on by default) after the opaque picture, the deferred paths only.
+DEFERRED = ["gbuffer", "lighting", "emissive", "reflections", *BASE]
+CPS = ["gbuffer", "cps_levels", "cps_lighting", "cps_filter", "emissive", "reflections", *BASE]
 
 # What the renderer enabled before the contract (Renderer.render / _configure_cps), per case:
 # settings, lights in the scene, a photon map or not -> the passes in order.

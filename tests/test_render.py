@@ -145,7 +145,8 @@ def test_lighting_pass_counts_samples_and_times_each_pass(host):
     assert r.shaded_samples() == W * H  # both eyes, full rate
     ms = r.pass_ms()  # one light: no culling pass
     assert set(ms) == {
-        *("shadows", "gbuffer", "shadow_mask", "lighting", "emissive", "present", "overlay")
+        *("shadows", "gbuffer", "shadow_mask", "lighting", "emissive", "reflections"),
+        *("present", "overlay"),
     }  # the checker casts shadows: the mask runs (render.shadow_detail)
     assert all(v >= 0 for v in ms.values()) and ms["lighting"] > 0
     draw(host, checker_scene(), render__path="forward")

@@ -57,10 +57,11 @@ KNOB_BASE: dict[str, tuple[str, ...]] = {
 }
 
 
-#: Steps the full-quality reference cannot measure: it keeps a run's own shadows off (a user
-#: who turned them off compares like with like), so no shadows would be measured against no
-#: shadows and cost nothing. Their priors stand (app.governor_model.PRIOR_KNOBS).
-UNMEASURED = {("render.shadows", "off")}
+#: Steps the full-quality reference cannot measure: it keeps a run's own shadows and
+#: reflections off (a user who turned them off compares like with like), so no shadows would
+#: be measured against no shadows and cost nothing. Their priors stand
+#: (app.governor_model.PRIOR_KNOBS).
+UNMEASURED = {("render.shadows", "off"), ("render.reflections", "off")}
 
 
 def _assign(step: dict[str, Any]) -> tuple[str, ...]:

@@ -90,6 +90,12 @@ FEATURES: tuple[Feature, ...] = (
         {"render.ambient_by_place": False},
     ),
     Feature("cps", "Coarse pixel shading", {"cps.mode": "cps"}, {"cps.mode": "none"}),
+    Feature(
+        "reflections",
+        "Reflections on glossy surfaces",
+        {"render.reflections": "screen"},
+        {"render.reflections": "off"},
+    ),
 )
 
 
