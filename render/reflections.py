@@ -100,16 +100,23 @@ class ReflectionPass(RenderPass):
     def __init__(self, ctx: moderngl.Context, shaders, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
         self.targets: list[ReflectTargets] = []
+        # The eyes' targets by size, the two last used: the view's and the small unseen
+        # frames' that compile the governor's programs (Renderer.warm_variants), in turn.
+        self._by_size: dict[tuple[int, int], list[ReflectTargets]] = {}
 
     def configure(self, settings, scene, frame) -> bool:
         return deferred(settings) and settings.render.reflections == "screen"
 
     def _ensure(self, size: tuple[int, int]) -> None:
-        if len(self.targets) == 2 and self.targets[0].size == size:
-            return
-        for t in self.targets:
-            t.release()
-        self.targets = [ReflectTargets(self.ctx, size) for _ in range(2)]
+        size = (int(size[0]), int(size[1]))
+        targets = self._by_size.pop(size, None)
+        if targets is None:
+            while len(self._by_size) >= 2:
+                for t in self._by_size.pop(next(iter(self._by_size))):
+                    t.release()
+            targets = [ReflectTargets(self.ctx, size) for _ in range(2)]
+        self._by_size[size] = targets  # the newest last
+        self.targets = targets
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         ctx = self.ctx
@@ -185,6 +192,8 @@ class ReflectionPass(RenderPass):
 
     def release(self) -> None:
         super().release()
-        for t in self.targets:
-            t.release()
-        self.targets.clear()
+        for targets in self._by_size.values():
+            for t in targets:
+                t.release()
+        self._by_size.clear()
+        self.targets = []

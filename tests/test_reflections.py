@@ -97,3 +97,29 @@ def test_the_forward_path_draws_without_reflections():
     on, off = _frame(scene, "screen", "forward"), _frame(scene, "off", "forward")
     assert np.isfinite(on).all()
     assert on == pytest.approx(off, rel=1e-5, abs=1e-6)
+
+
+def test_a_change_of_render_scale_keeps_the_reflection():
+    """The governor's render scale resizes the eyes' targets: the pass follows (its targets
+    kept for the last two sizes) and the mirror image is there at each size, without error."""
+    scene = _room(0.1)
+    s = Settings()
+    s.set("render.exposure_mode", "manual")
+    with OffscreenHost(2 * W, H, s) as host:
+        host.set_scene(scene)
+        cam = StereoCamera(s.stereo)
+        cam.set_pose(scene.spawn.position, 180.0, PITCH)
+        frame = FrameInput(cam.eyes(*host.eye_size), gaze=(0.5, 0.5))
+        peaks = []
+        for scale, reflections in ((1.0, "screen"), (0.75, "screen"), (0.75, "off"), (1.0, "screen")):
+            s.set("render.scale", scale)
+            s.set("render.reflections", reflections)
+            host.draw(frame)
+            lum = host.read_hdr(0)[:, :, :3] @ LUMA
+            h = lum.shape[0]
+            peaks.append(float(lum[h // 2 :, lum.shape[1] // 2 - 5 : lum.shape[1] // 2 + 5].max()))
+        assert not host.renderer.errors
+        sizes = sorted(t[0].size for t in host.renderer.reflections._by_size.values())
+    assert sizes == [(W * 3 // 4, H * 3 // 4), (W, H)]  # the two sizes drawn, kept
+    assert peaks[1] > 3.0 * peaks[2]  # smaller: the floor mirrors the panel, off it does not
+    assert peaks[0] == pytest.approx(peaks[3], rel=1e-3)  # back at full size: the same picture
