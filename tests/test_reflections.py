@@ -111,7 +111,8 @@ def test_a_change_of_render_scale_keeps_the_reflection():
         cam.set_pose(scene.spawn.position, 180.0, PITCH)
         frame = FrameInput(cam.eyes(*host.eye_size), gaze=(0.5, 0.5))
         peaks = []
-        for scale, reflections in ((1.0, "screen"), (0.75, "screen"), (0.75, "off"), (1.0, "screen")):
+        steps = ((1.0, "screen"), (0.75, "screen"), (0.75, "off"), (1.0, "screen"))
+        for scale, reflections in steps:
             s.set("render.scale", scale)
             s.set("render.reflections", reflections)
             host.draw(frame)
