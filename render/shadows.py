@@ -7,9 +7,12 @@ size on screen (its range sphere's projected radius, 256 to 1024 texels a face; 
 a lamp far away costs little. Maps are cached: the key is the light's parameters, its tile and the
 scene (a new ``GpuScene`` is new geometry); a static interior draws each map once and reuses it.
 After a new scene's first frame (which draws every map), at most
-``render.shadow_updates_per_frame`` lights are redrawn per frame (the most prominent first); a
-light waiting for its turn keeps its last map, or has no shadow until its first. A light whose
-wanted tile size changes by one step (2x) keeps its tiles.
+``render.shadow_updates_per_frame`` lights are redrawn at a time (the most prominent first), and
+each of them by at most ``FACES_PER_FRAME`` tiles a frame: a point light's six faces take three
+frames (a lamp coming into view while walking cost one frame 10-15 ms in the corridor, over the
+30 fps budget; a third of that fits). A light being redrawn keeps its last map until its new one
+is complete, or has no shadow until its first. A light whose wanted tile size changes by one
+step (2x) keeps its tiles.
 
 The pass fills the ``Shadows`` uniform block (shadows.glsl, binding 1) and binds the atlas to its
 texture unit every frame, so every lighting path (deferred compute and fragment, forward, coarse
@@ -40,6 +43,7 @@ from render.shaders import ShaderLibrary
 
 MODES = {"off": 0, "hard": 1, "soft": 2}
 MIN_FACE, MAX_FACE = 256, 1024  # a lamp's tile edge, texels
+FACES_PER_FRAME = 2  # tiles a light being redrawn gets a frame (after a new scene's first)
 SUN_TILE = 2048
 NEAR_M = 0.05  # perspective maps' near plane
 SLOPE_OFFSET = (2.0, 4.0)
@@ -154,6 +158,11 @@ class ShadowMap:
     drawn_key: tuple | None = None  # the light key of what the tiles hold (None: nothing yet)
     matrices: list[np.ndarray] = field(default_factory=list)  # world -> atlas, per tile
     texel: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # shadows.glsl's shadow_texel
+    # A redraw under way (FACES_PER_FRAME tiles a frame): its key, the tiles done, and what
+    # the lookups take once it is complete (until then they keep the last complete map).
+    drawing_key: tuple | None = None
+    faces_done: int = 0
+    next: tuple = ()  # (views, matrices, texel) of the redraw under way
 
 
 def light_key(light: Light) -> tuple:
@@ -304,7 +313,8 @@ class ShadowPass(RenderPass):
         self.renders = 0
         self.face_renders = 0
         self.updates = 0
-        self.pending = 0  # lights waiting for a redraw after this frame
+        self.pending = 0  # lights waiting for a redraw (or its end) after this frame
+        self.frame_faces = 0  # tiles drawn this frame
         self.shadowed = 0  # lights with a map in use this frame
         self.mask_slots: list[int] = []  # the lights of the shadow mask's slots, in order
 
@@ -336,8 +346,9 @@ class ShadowPass(RenderPass):
         reads 2^32 ns, so a frame that draws maps is timed on the clock (it waits for the GPU
         then: rare, maps are cached)."""
         start = time.perf_counter()
+        self.frame_faces = 0
         super().run(frame)
-        if self.updates:
+        if self.frame_faces:
             self.ctx.finish()
             self._timed = False  # the clock's reading stands, not the query's
             self.last_ms = (time.perf_counter() - start) * 1000.0
@@ -356,6 +367,7 @@ class ShadowPass(RenderPass):
             self._bind(res)
             return
         self.updates = 0
+        self.frame_faces = 0
         self.pending = 0
         wanted: dict[int, tuple[int, int]] = {}
         if self.mode:
@@ -375,13 +387,18 @@ class ShadowPass(RenderPass):
         current = {i: m.size for i, m in self.maps.items()}
         wanted = fit_sizes(wanted, SHADOW_ATLAS * SHADOW_ATLAS, current)
         self._allocate(wanted, lights)
-        dirty = [i for i in wanted if self.maps[i].drawn_key != (light_key(lights[i]), self._scene)]
+        keys = {i: (light_key(lights[i]), self._scene) for i in wanted}
+        dirty = [i for i in wanted if self.maps[i].drawn_key != keys[i]]
+        # Redraws under way go on first (then the most prominent): a lamp's shadow is not left
+        # half drawn while others start.
+        dirty.sort(key=lambda i: self.maps[i].drawing_key != keys[i])
         # A new scene's first frame draws every map (it stalls for its shaders anyway, and a
         # still picture is then complete); later changes wait for the budget.
         budget = len(dirty) if first else self.budget
+        per_light = None if first else FACES_PER_FRAME
         for i in dirty[:budget]:
-            self._draw(frame, i, lights[i])
-        self.pending = max(0, len(dirty) - budget)
+            self._draw(frame, i, lights[i], per_light)
+        self.pending = sum(1 for i in dirty if self.maps[i].drawn_key != keys[i])
         self._upload(wanted)
         self._bind(res)
 
@@ -466,9 +483,16 @@ class ShadowPass(RenderPass):
         self.maps.clear()
         self.space = BuddyAtlas(SHADOW_ATLAS)
 
-    def _draw(self, frame: FrameContext, i: int, light: Light) -> None:
+    def _draw(self, frame: FrameContext, i: int, light: Light, faces: int | None = None) -> None:
+        """Draw light ``i``'s next ``faces`` tiles (None: all that are left); the map is used
+        with its new matrices once every tile is drawn."""
         m = self.maps[i]
-        views, m.matrices, m.texel = map_matrices(light, m.size, m.tiles, self._bounds)
+        key = (light_key(light), self._scene)
+        if m.drawing_key != key:  # a new redraw: from the first tile
+            m.drawing_key, m.faces_done = key, 0
+            m.next = map_matrices(light, m.size, m.tiles, self._bounds)
+        views = m.next[0]
+        todo = list(range(m.faces_done, len(m.tiles)))[: (faces or len(m.tiles))]
         ctx, fbo = self.ctx, self.fbo
         assert fbo is not None
         prog = self.shaders.program("shadow_depth.vert.glsl", "shadow_depth.frag.glsl")
@@ -479,7 +503,8 @@ class ShadowPass(RenderPass):
         ctx.polygon_offset = SLOPE_OFFSET
         casters = [k for k in scene.standalone if casts(scene.meshes[k])]
         groups = [k for k, g in enumerate(scene.groups) if casts(g)]  # merged meshes
-        for vp, (x, y) in zip(views, m.tiles):
+        for f in todo:
+            vp, (x, y) = views[f], m.tiles[f]
             rect = (x, y, m.size, m.size)
             fbo.viewport = rect
             fbo.clear(depth=1.0, viewport=rect)
@@ -489,11 +514,15 @@ class ShadowPass(RenderPass):
             for k in casters:
                 scene.draw(scene.vao(prog, k), k, vp)
             self.face_renders += 1
+            self.frame_faces += 1
         ctx.polygon_offset = (0.0, 0.0)
         ctx.disable(moderngl.DEPTH_TEST)
-        m.drawn_key = (light_key(light), self._scene)
-        self.renders += 1
-        self.updates += 1
+        m.faces_done += len(todo)
+        if m.faces_done >= len(m.tiles):  # complete: the lookups take it from now on
+            _, m.matrices, m.texel = m.next
+            m.drawn_key = key
+            self.renders += 1
+            self.updates += 1
 
     def _upload(self, wanted: dict[int, tuple[int, int]]) -> None:
         info = np.zeros((MAX_LIGHTS, 4), np.int32)

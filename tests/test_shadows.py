@@ -272,6 +272,9 @@ def test_a_static_scene_draws_each_map_once_and_a_moved_light_again(host):
     with host.ctx:
         host.renderer.gpu_scene.set_lights(moved)
     host.draw(fi)
+    host.draw(fi)  # a point light's six faces, two a frame: its last map meanwhile
+    assert (maps.renders - before, maps.shadowed, maps.pending) == (len(lights), len(lights), 1)
+    host.draw(fi)
     assert maps.renders - before == len(lights) + 1  # only the moved light's map again
     host.draw(fi)
     assert maps.renders - before == len(lights) + 1
@@ -298,17 +301,29 @@ def test_the_budget_limits_map_updates_per_frame(host):
     ]
     with host.ctx:
         host.renderer.gpu_scene.set_lights(moved)
-    drawn = []
-    for _ in range(4):
+    drawn, faces = [], []
+    for _ in range(10):
+        before = maps.face_renders
         host.draw(fi)
         drawn.append((maps.updates, maps.shadowed, maps.pending))
-    # Two redraws a frame; the lights waiting keep their last shadows meanwhile.
-    assert drawn == [(2, 6, 4), (2, 6, 2), (2, 6, 0), (0, 6, 0)]
+        faces.append(maps.face_renders - before)
+    # Two redraws at a time, each two cube faces a frame (FACES_PER_FRAME): a light's new
+    # map is used once its six faces are drawn; the lights waiting keep their last shadows.
+    assert faces == [4] * 9 + [0]
+    assert drawn == [
+        *((0, 6, 6), (0, 6, 6), (2, 6, 4)),
+        *((0, 6, 4), (0, 6, 4), (2, 6, 2)),
+        *((0, 6, 2), (0, 6, 2), (2, 6, 0)),
+        (0, 6, 0),
+    ]
     with host.ctx:  # a light switched on later waits for its turn, without a shadow
         host.renderer.gpu_scene.set_lights([*moved, Light((1.0, 2.0, 3.0), (1, 1, 1), 5.0, 8.0)])
     host.settings.set("render.shadow_updates_per_frame", 1)
-    host.draw(fi)
-    assert (maps.updates, maps.shadowed, maps.pending) == (1, 7, 0)
+    drawn = []
+    for _ in range(3):
+        host.draw(fi)
+        drawn.append((maps.updates, maps.shadowed, maps.pending))
+    assert drawn == [(0, 6, 1), (0, 6, 1), (1, 7, 0)]
     assert maps.memory_bytes > 0
 
 

@@ -278,6 +278,8 @@ def bench(
                     else 0
                 ),
                 "resident_bytes": resident[-1],
+                # Each pass's time: where a slow frame spent it.
+                "passes_ms": {k: round(v, 2) for k, v in host.renderer.pass_ms().items()},
             }
             if reference is not None and i % compare_every == 0:
                 test_img = host.read_pixels()  # the timed frame itself
