@@ -309,8 +309,9 @@ class RenderSettings:
     )
     shadow_updates_per_frame: int = _opt(
         2,
-        "How many lights may redraw their shadows in one frame after something moved; the "
-        "others keep their last shadows a little longer, so the frame rate holds.",
+        "How many lights may redraw their shadows at a time after something moved or came "
+        "into view, each a third of a lamp a frame; the others keep their last shadows a "
+        "little longer, so the frame rate holds.",
         label="Shadow redraws per frame",
         unit="lights",
         lo=1,
