@@ -276,3 +276,23 @@ def test_material_maps_reach_the_export():
     assert out["normal_texture"] == 0 and out["normal_scale"] == 0.5
     assert out["metallic_roughness_texture"] == 1 and out["emissive_texture"] == 2
     assert out["alpha_mode"] == "MASK" and out["alpha_cutoff"] == 0.5
+
+
+def test_still_compares_the_refined_frame(rendered):
+    """``reference-compare --still``: our frame as the window shows it once the viewer stands
+    still (refined: jittered samples averaged), so the marker's edges are smoothed (some pixels
+    between the box's red and the floor, none in the frame drawn while walking) and the
+    comparison says so."""
+    scene, s, _ref, ours, cache = rendered
+    s.set("render.refine_samples", 8)
+    still = rc.our_frames(scene, VIEW, SIZE, {"defaults": s}, still=True)["defaults"]
+    def mixed(img: np.ndarray) -> int:
+        f = img.astype(np.int16)
+        red = (f[..., 0] > 120) & (f[..., 1] < 0.45 * f[..., 0])
+        pale = (f[..., 0] - f[..., 1] > 20) & ~red  # between the red box and the grey floor
+        return int((pale & rc.without_gaze_ring(SIZE)).sum())
+
+    assert mixed(still.image) > mixed(ours.image) + 3
+    result = rc.compare("lit-box", scene, s, VIEW, SIZE, 8, ["ambient"], cache, still=True)
+    assert result.still and "refined" in result.table()
+    assert 0.0 < result.flip_defaults < 1.0

@@ -121,7 +121,11 @@ AO_BAKE_WAIT_S = 300.0  # the baked occlusion (render.ao=baked) is waited for, a
 
 
 def our_frames(
-    scene: Scene, view: Viewpoint, size: tuple[int, int], variants: dict[str, Settings]
+    scene: Scene,
+    view: Viewpoint,
+    size: tuple[int, int],
+    variants: dict[str, Settings],
+    still: bool = False,
 ) -> dict[str, OurFrame]:
     """Our left eye at ``size`` for each settings variant.
 
@@ -131,8 +135,11 @@ def our_frames(
     the settled one, as a user sees it after a moment at the view: the sky's visibility baked
     (it lights the room through the windows only once baked), every shadow map drawn (the
     per-frame budget of shadow redraws lifted), the baked occlusion done, and the last of
-    ``SETTLE_FRAMES`` frames."""
+    ``SETTLE_FRAMES`` frames. ``still``: the picture the window shows once the viewer has
+    stood there a while, refined (``render.refine`` on: jittered samples averaged until every
+    pixel has ``render.refine_samples``)."""
     from app.paths import FIXED_DT
+    from app.refine import needed
     from app.session import Session
     from render.offscreen import OffscreenHost  # GL only when a comparison runs
 
@@ -150,6 +157,8 @@ def our_frames(
                 if live.get(key) != settings.get(key):
                     live.set(key, settings.get(key))
             live.set("render.shadow_updates_per_frame", 64)  # every shadow map at once
+            if still:
+                live.set("render.refine", "on")
             if live.sky.enabled and host.renderer.gpu_scene is not None:
                 with host.ctx:
                     host.renderer.daylight.wait_for_visibility(host.renderer.gpu_scene)
@@ -158,7 +167,8 @@ def our_frames(
                 bake = host.renderer.gpu_scene.ao_bake
                 if bake is not None:  # the settling frames then upload it
                     bake.wait(AO_BAKE_WAIT_S)
-            for _ in range(SETTLE_FRAMES):
+            frames = needed(live.render.refine_samples) + 2 if still else SETTLE_FRAMES
+            for _ in range(frames):
                 session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
                 session.eye_size = size
                 session.tick(FIXED_DT)
@@ -200,6 +210,7 @@ class Comparison:
     mean_luminance_ours: float
     mean_luminance_reference: float
     features: list[FeatureRow]
+    still: bool = False  # our frames refined, as the window shows a view once still
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -209,7 +220,8 @@ class Comparison:
 
     def table(self) -> str:
         lines = [
-            f"{self.scene} {self.size[0]}x{self.size[1]}, {self.samples} samples: FLIP "
+            f"{self.scene} {self.size[0]}x{self.size[1]}, {self.samples} samples"
+            f"{', ours refined (still)' if self.still else ''}: FLIP "
             f"{self.flip_defaults:.3f} with the current settings (mean luminance ours "
             f"{self.mean_luminance_ours:.2f}, reference {self.mean_luminance_reference:.2f} "
             "cd/m2)",
@@ -254,6 +266,7 @@ def compare(
     cache: Path | None = None,
     note: Callable[[str], None] | None = None,
     max_bounces: int | None = None,
+    still: bool = False,
 ) -> Comparison:
     """FLIP of our frame against the Cycles reference, with the settings as given and with
     each feature on and off."""
@@ -274,7 +287,7 @@ def compare(
         if why is None:
             variants[f"{f.name}:on"] = with_overrides(settings, f.on)
             variants[f"{f.name}:off"] = with_overrides(settings, f.off)
-    frames = our_frames(scene, view, size, variants)
+    frames = our_frames(scene, view, size, variants, still)
     ppd = ppd_of(settings, size)
 
     keep = without_gaze_ring(size)
@@ -311,6 +324,7 @@ def compare(
         mean_luminance_ours=float(luminance(frames["defaults"].hdr).mean()),
         mean_luminance_reference=float(luminance(ref.radiance).mean()),
         features=rows,
+        still=still,
     )
 
 
@@ -340,6 +354,12 @@ def add_parsers(sub: Any, common: Callable[..., None]) -> None:
             help="Cycles' bounces (default: all; 0: the direct light alone)",
         )
         if name == "reference-compare":
+            p.add_argument(
+                "--still",
+                action="store_true",
+                help="our frames refined, as the window shows a view once you stand still "
+                "(jittered samples averaged); default: the frame drawn while walking",
+            )
             p.add_argument(
                 "--features",
                 default=None,
@@ -385,6 +405,7 @@ def run_command(args: Any, settings: Settings) -> int:
             features,
             note=note,
             max_bounces=args.reference_bounces,
+            still=args.still,
         )
     except CyclesError as exc:
         print(f"vrpreview: error: {exc}", file=sys.stderr)
