@@ -286,6 +286,7 @@ def test_still_compares_the_refined_frame(rendered):
     scene, s, _ref, ours, cache = rendered
     s.set("render.refine_samples", 8)
     still = rc.our_frames(scene, VIEW, SIZE, {"defaults": s}, still=True)["defaults"]
+
     def mixed(img: np.ndarray) -> int:
         f = img.astype(np.int16)
         red = (f[..., 0] > 120) & (f[..., 1] < 0.45 * f[..., 0])
