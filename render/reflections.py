@@ -30,6 +30,7 @@ import moderngl
 from render.ambient_field import bind_field
 from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
 from render.passes import deferred, scene_uniforms
+from render.shadow_mask import depth_terms
 
 MAX_ROUGHNESS = 0.6  # rougher surfaces keep the even light (their lobe is nearly uniform)
 STEPS = 12  # geometric steps along the reflected ray
@@ -168,8 +169,7 @@ class ReflectionPass(RenderPass):
                     "u_inv_view_projection": eye.inverse_view_projection,
                     "u_eye": tuple(eye.position),
                     "u_size": tgt.size,
-                    "u_depth_a": float(eye.projection[2, 2]),
-                    "u_depth_b": float(eye.projection[2, 3]),
+                    "u_depth_terms": depth_terms(eye),
                 },
             )
             self.fullscreen(trace)

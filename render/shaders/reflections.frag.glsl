@@ -16,8 +16,7 @@ uniform mat4 u_view_projection;
 uniform mat4 u_inv_view_projection;
 uniform vec3 u_eye;
 uniform ivec2 u_size;  // the eye's full size (the G-buffer's)
-uniform float u_depth_a;  // the projection's [2][2] and [2][3]: view depth from the buffer's
-uniform float u_depth_b;
+uniform vec2 u_depth_terms;  // view distance = y / (ndc_z + x), from the eye's projection
 uniform float u_max_roughness;  // rougher surfaces get nothing (their lobe is the even light)
 
 layout(location = 0) out vec4 out_color;
@@ -45,7 +44,10 @@ bool probe(float t, out vec2 uv, out float behind) {
     uv = c.xy / c.w * 0.5 + 0.5;
     if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) return false;
     float d = texelFetch(u_gb_depth, ivec2(uv * vec2(u_size)), 0).r;
-    if (d < 1.0) behind = c.w - u_depth_b / (2.0 * d - 1.0 + u_depth_a);  // view-axis depth
+    if (d < 1.0) {  // along the view axis, as the ray's c.w
+        float den = 2.0 * d - 1.0 + u_depth_terms.x;
+        behind = c.w - u_depth_terms.y / (abs(den) > 1e-9 ? den : -1e-9);
+    }
     return true;
 }
 
