@@ -43,7 +43,7 @@ bool probe(float t, out vec2 uv, out float behind) {
     if (c.w <= 1e-4) return false;
     uv = c.xy / c.w * 0.5 + 0.5;
     if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) return false;
-    float d = texelFetch(u_gb_depth, ivec2(uv * vec2(u_size)), 0).r;
+    float d = texelFetch(u_gb_depth, min(ivec2(uv * vec2(u_size)), u_size - 1), 0).r;
     if (d < 1.0) {  // along the view axis, as the ray's c.w
         float den = 2.0 * d - 1.0 + u_depth_terms.x;
         behind = c.w - u_depth_terms.y / (abs(den) > 1e-9 ? den : -1e-9);
