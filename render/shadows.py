@@ -492,7 +492,7 @@ class ShadowPass(RenderPass):
             m.drawing_key, m.faces_done = key, 0
             m.next = map_matrices(light, m.size, m.tiles, self._bounds)
         views = m.next[0]
-        todo = list(range(m.faces_done, len(m.tiles)))[: (faces or len(m.tiles))]
+        faces_now = list(range(m.faces_done, len(m.tiles)))[: (faces or len(m.tiles))]
         ctx, fbo = self.ctx, self.fbo
         assert fbo is not None
         prog = self.shaders.program("shadow_depth.vert.glsl", "shadow_depth.frag.glsl")
@@ -503,7 +503,7 @@ class ShadowPass(RenderPass):
         ctx.polygon_offset = SLOPE_OFFSET
         casters = [k for k in scene.standalone if casts(scene.meshes[k])]
         groups = [k for k, g in enumerate(scene.groups) if casts(g)]  # merged meshes
-        for f in todo:
+        for f in faces_now:
             vp, (x, y) = views[f], m.tiles[f]
             rect = (x, y, m.size, m.size)
             fbo.viewport = rect
@@ -517,7 +517,7 @@ class ShadowPass(RenderPass):
             self.frame_faces += 1
         ctx.polygon_offset = (0.0, 0.0)
         ctx.disable(moderngl.DEPTH_TEST)
-        m.faces_done += len(todo)
+        m.faces_done += len(faces_now)
         if m.faces_done >= len(m.tiles):  # complete: the lookups take it from now on
             _, m.matrices, m.texel = m.next
             m.drawn_key = key
