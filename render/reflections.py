@@ -62,21 +62,22 @@ class ReflectTargets:
         self.half_mask = ctx.depth_texture(half)
         self.half_mask_fbo = ctx.framebuffer(depth_attachment=self.half_mask)
         self.half_fbo = ctx.framebuffer([self.half], self.half_mask)
-        self._over: dict[int, moderngl.Framebuffer] = {}  # the eye's colour over the mask
+        # The eye's colour over the mask, for the colour texture it was made with: by the
+        # object, not its GL name (the renderer remakes its targets, and GL reuses names,
+        # while these targets are kept for their size).
+        self._over: tuple[moderngl.Texture, moderngl.Framebuffer] | None = None
 
     def over(self, ctx: moderngl.Context, color: moderngl.Texture) -> moderngl.Framebuffer:
         """The eye's HDR colour with the full-size glossy mask as depth."""
-        fbo = self._over.get(color.glo)
-        if fbo is None:
-            for old in self._over.values():
-                old.release()
-            self._over = {color.glo: ctx.framebuffer([color], self.mask)}
-            fbo = self._over[color.glo]
-        return fbo
+        if self._over is None or self._over[0] is not color:
+            if self._over is not None:
+                self._over[1].release()
+            self._over = (color, ctx.framebuffer([color], self.mask))
+        return self._over[1]
 
     def release(self) -> None:
         objects: list[moderngl.Framebuffer | moderngl.Texture] = [
-            *self._over.values(),
+            *([self._over[1]] if self._over is not None else []),
             self.half_fbo,
             self.half_mask_fbo,
             self.half_mask,
@@ -88,7 +89,7 @@ class ReflectTargets:
         ]
         for obj in objects:
             obj.release()
-        self._over.clear()
+        self._over = None
 
 
 class ReflectionPass(RenderPass):
