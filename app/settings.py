@@ -268,7 +268,8 @@ class RenderSettings:
         "screen",
         "Glossy surfaces, such as a varnished floor or a lacquered piano, mirror what lies "
         "in their reflected direction: the window, the lamps, the sunlit patch. Taken from "
-        "the picture on screen: what is out of view is reflected as the room's even light.",
+        "the picture on screen: what is out of view is reflected as the room's even light. "
+        "Drawn with the deferred rendering method.",
         label="Reflections on glossy surfaces",
         paper="Screen-space reflections (ray march through the depth buffer)",
         choices=("off", "screen"),
@@ -310,8 +311,8 @@ class RenderSettings:
     shadow_updates_per_frame: int = _opt(
         2,
         "How many lights may redraw their shadows at a time after something moved or came "
-        "into view, each a third of a lamp a frame; the others keep their last shadows a "
-        "little longer, so the frame rate holds.",
+        "into view (a lamp's shadow over three frames); the others keep their last shadows "
+        "a little longer, so the frame rate holds.",
         label="Shadow redraws per frame",
         unit="lights",
         lo=1,

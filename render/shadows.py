@@ -10,8 +10,9 @@ After a new scene's first frame (which draws every map), at most
 ``render.shadow_updates_per_frame`` lights are redrawn at a time (the most prominent first), and
 each of them by at most ``FACES_PER_FRAME`` tiles a frame: a point light's six faces take three
 frames (a lamp coming into view while walking cost one frame 10-15 ms in the corridor, over the
-30 fps budget; a third of that fits). A light being redrawn keeps its last map until its new one
-is complete, or has no shadow until its first. A light whose wanted tile size changes by one
+30 fps budget; a third of that fits). A light being redrawn keeps its last map's matrices until
+its new one is complete (a moved lamp's shadow may mix old and new faces for two frames), or has
+no shadow until its first. A light whose wanted tile size changes by one
 step (2x) keeps its tiles.
 
 The pass fills the ``Shadows`` uniform block (shadows.glsl, binding 1) and binds the atlas to its
@@ -367,7 +368,6 @@ class ShadowPass(RenderPass):
             self._bind(res)
             return
         self.updates = 0
-        self.frame_faces = 0
         self.pending = 0
         wanted: dict[int, tuple[int, int]] = {}
         if self.mode:
