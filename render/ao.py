@@ -33,7 +33,15 @@ import moderngl
 import numpy as np
 
 from app.camera import EyeView
-from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
+from render.pass_graph import (
+    BySize,
+    FrameContext,
+    RenderPass,
+    Resources,
+    bind_texture,
+    release_all,
+    set_uniforms,
+)
 from render.shaders import ShaderLibrary
 
 AO_DIRECTIONS = 8  # rays per half-resolution pixel
@@ -106,6 +114,9 @@ class AmbientOcclusionPass(RenderPass):
         self.radius_m = 0.75
         self.strength = 1.0
         self.targets: list[AoTargets] = []
+        self._by_size: BySize[list[AoTargets]] = BySize(
+            lambda size: [AoTargets(self.ctx, size) for _ in range(2)], release_all
+        )
         self.skipped_for_indirect = False  # last frame: the photons' bounce light was on
 
     def configure(self, settings, scene, frame) -> bool:
@@ -118,11 +129,7 @@ class AmbientOcclusionPass(RenderPass):
         return self.method in ("screen", "baked")
 
     def _ensure(self, size: tuple[int, int]) -> None:
-        if len(self.targets) == 2 and self.targets[0].size == size:
-            return
-        for t in self.targets:
-            t.release()
-        self.targets = [AoTargets(self.ctx, size) for _ in range(2)]
+        self.targets = self._by_size.get(size)
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         self.skipped_for_indirect = (
@@ -226,6 +233,5 @@ class AmbientOcclusionPass(RenderPass):
 
     def release(self) -> None:
         super().release()
-        for t in self.targets:
-            t.release()
-        self.targets.clear()
+        self._by_size.clear()
+        self.targets = []

@@ -24,11 +24,13 @@ from app.camera import EyeView
 from app.cps import MAX_LEVEL
 from app.settings import CpsSettings
 from render.pass_graph import (
+    BySize,
     FrameContext,
     RenderPass,
     Resources,
     bind_image,
     bind_texture,
+    release_all,
     set_uniforms,
     uniform,
 )
@@ -200,14 +202,29 @@ class CpsState:
         self.ctx = ctx
         self.eyes: list[CpsEyeTargets] = []
         self.level_maps_valid = False
+        self._for: list[EyeTargets] = []  # the eye targets the next made pair is for
+        # Kept for the eye targets' last sizes, as the renderer keeps those (BySize).
+        self._by_size: BySize[list[CpsEyeTargets]] = BySize(
+            lambda _size: [CpsEyeTargets(self.ctx, t) for t in self._for], release_all
+        )
 
     def ensure(self, targets: list[EyeTargets]) -> None:
-        """Targets for these eye targets (re-made when the eye targets were)."""
-        if len(self.eyes) == len(targets) and all(c.eye is t for c, t in zip(self.eyes, targets)):
+        """Targets for these eye targets (those kept for them, or made anew)."""
+        if self._serves(self.eyes, targets):
             return
-        self.release()
-        self.eyes = [CpsEyeTargets(self.ctx, t) for t in targets]
+        self._for = targets
+        eyes = self._by_size.get(targets[0].size)
+        if not self._serves(eyes, targets):  # the eye targets of that size were made anew
+            self._by_size.drop(targets[0].size)
+            eyes = self._by_size.get(targets[0].size)
+        for e in eyes:  # frames of another size came between: their history is not this
+            e.has_history = False
+        self.eyes = eyes
         self.level_maps_valid = False
+
+    @staticmethod
+    def _serves(eyes: list[CpsEyeTargets], targets: list[EyeTargets]) -> bool:
+        return len(eyes) == len(targets) and all(c.eye is t for c, t in zip(eyes, targets))
 
     def read_levels(self) -> list[np.ndarray]:
         """Each eye's level per pixel, (H, W) uint8, row 0 at the top (empty if not made)."""
@@ -222,9 +239,9 @@ class CpsState:
         return out
 
     def release(self) -> None:
-        for e in self.eyes:
-            e.release()
+        self._by_size.clear()
         self.eyes = []
+        self._for = []
 
 
 class CpsPass(RenderPass):

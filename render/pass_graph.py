@@ -18,9 +18,9 @@ drop (the GLSL compiler removes uniforms a variant does not read).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any, Generic, TypeVar, cast
 
 import moderngl
 import numpy as np
@@ -293,6 +293,62 @@ def check_graph(passes: Sequence[RenderPass]) -> None:
                     f"pass '{p.name}' reads '{name}' but no earlier pass writes it"
                 )
         written.update(p.writes)
+
+
+T = TypeVar("T")
+
+#: Sizes a frame's targets are kept for: the view's, the render scale the governor left last
+#: (it steps back and forth) and the small unseen frames that compile its programs
+#: (``Renderer.warm_variants``), which take turns with the view's while the window warms up.
+KEEP_SIZES = 3
+
+
+class BySize(Generic[T]):
+    """Targets made for a size (``make(size)``), kept for the last ``keep`` sizes used, so
+    that frames of sizes taking turns do not remake every target each time (a frame that
+    remakes them costs tens of ms on llvmpipe). ``release(item)`` frees what is dropped."""
+
+    def __init__(
+        self,
+        make: Callable[[tuple[int, int]], T],
+        release: Callable[[T], None],
+        keep: int = KEEP_SIZES,
+    ) -> None:
+        self._make = make
+        self._release = release
+        self.keep = max(1, int(keep))
+        self._items: dict[tuple[int, int], T] = {}  # the most recently used last
+
+    def get(self, size: Sequence[int]) -> T:
+        key = (int(size[0]), int(size[1]))
+        item = self._items.pop(key, None)
+        if item is None:
+            while len(self._items) >= self.keep:  # the least recently used goes first
+                self._release(self._items.pop(next(iter(self._items))))
+            item = self._make(key)
+        self._items[key] = item
+        return item
+
+    def drop(self, size: Sequence[int]) -> None:
+        """Release what is held for ``size`` (it is made anew on the next ``get``)."""
+        item = self._items.pop((int(size[0]), int(size[1])), None)
+        if item is not None:
+            self._release(item)
+
+    def sizes(self) -> list[tuple[int, int]]:
+        """The sizes held, the most recently used last."""
+        return list(self._items)
+
+    def clear(self) -> None:
+        items, self._items = list(self._items.values()), {}
+        for item in items:
+            self._release(item)
+
+
+def release_all(items: Iterable[Any]) -> None:
+    """``release()`` each of ``items`` (a pair of per-eye targets)."""
+    for item in items:
+        item.release()
 
 
 def release_query(query: moderngl.Query) -> None:

@@ -12,6 +12,7 @@ import numpy as np
 
 from render.constants import TEXTURE_UNITS
 from render.pass_graph import (
+    BySize,
     FrameContext,
     RenderPass,
     Resources,
@@ -49,6 +50,9 @@ class PresentPass(RenderPass):
         self._sharpened = False  # this frame's eyes were sharpened into _display[2:]
         self._after: list[tuple[moderngl.Texture, moderngl.Framebuffer]] = []
         self._display: list[tuple[moderngl.Texture, moderngl.Framebuffer]] = []
+        self._displays: BySize[list[tuple[moderngl.Texture, moderngl.Framebuffer]]] = BySize(
+            self._make_display, _release_pairs
+        )
 
     @staticmethod
     def defines(settings) -> dict[str, object]:
@@ -114,14 +118,18 @@ class PresentPass(RenderPass):
 
     def _ensure_display(self, size: tuple[int, int]) -> None:
         """Per eye the tone-mapped colour at the drawn size (rgba8), for the upscaler."""
-        if self._display and self._display[0][0].size == size:
-            return
-        self._release_display()
+        self._display = self._displays.get(size)
+
+    def _make_display(
+        self, size: tuple[int, int]
+    ) -> list[tuple[moderngl.Texture, moderngl.Framebuffer]]:
+        made = []
         for _ in range(4):  # per eye the tone-mapped colour, then (render.sharpen) sharpened
             tex = self.ctx.texture(size, 4)
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             tex.repeat_x = tex.repeat_y = False
-            self._display.append((tex, self.ctx.framebuffer([tex])))
+            made.append((tex, self.ctx.framebuffer([tex])))
+        return made
 
     def _sharpen(self, src: tuple[int, int]) -> None:
         """RCAS per eye at the drawn size, into the second pair of targets (render.sharpen)."""
@@ -195,15 +203,19 @@ class PresentPass(RenderPass):
         self._after.clear()
 
     def _release_display(self) -> None:
-        for tex, fbo in self._display:
-            fbo.release()
-            tex.release()
-        self._display.clear()
+        self._displays.clear()
+        self._display = []
         self._release_after()
 
     def release(self) -> None:
         super().release()
         self._release_display()
+
+
+def _release_pairs(pairs: list[tuple[moderngl.Texture, moderngl.Framebuffer]]) -> None:
+    for tex, fbo in pairs:
+        fbo.release()
+        tex.release()
 
 
 class OverlayPass(RenderPass):

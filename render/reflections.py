@@ -28,7 +28,15 @@ from __future__ import annotations
 import moderngl
 
 from render.ambient_field import bind_field
-from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
+from render.pass_graph import (
+    BySize,
+    FrameContext,
+    RenderPass,
+    Resources,
+    bind_texture,
+    release_all,
+    set_uniforms,
+)
 from render.passes import deferred, scene_uniforms
 from render.shadow_mask import depth_terms
 
@@ -102,23 +110,16 @@ class ReflectionPass(RenderPass):
     def __init__(self, ctx: moderngl.Context, shaders, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
         self.targets: list[ReflectTargets] = []
-        # The eyes' targets by size, the two last used: the view's and the small unseen
-        # frames' that compile the governor's programs (Renderer.warm_variants), in turn.
-        self._by_size: dict[tuple[int, int], list[ReflectTargets]] = {}
+        # The eyes' targets for the last sizes used, as the renderer keeps its own (BySize).
+        self._by_size: BySize[list[ReflectTargets]] = BySize(
+            lambda size: [ReflectTargets(self.ctx, size) for _ in range(2)], release_all
+        )
 
     def configure(self, settings, scene, frame) -> bool:
         return deferred(settings) and settings.render.reflections == "screen"
 
     def _ensure(self, size: tuple[int, int]) -> None:
-        size = (int(size[0]), int(size[1]))
-        targets = self._by_size.pop(size, None)
-        if targets is None:
-            while len(self._by_size) >= 2:
-                for t in self._by_size.pop(next(iter(self._by_size))):
-                    t.release()
-            targets = [ReflectTargets(self.ctx, size) for _ in range(2)]
-        self._by_size[size] = targets  # the newest last
-        self.targets = targets
+        self.targets = self._by_size.get(size)
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         ctx = self.ctx
@@ -193,8 +194,5 @@ class ReflectionPass(RenderPass):
 
     def release(self) -> None:
         super().release()
-        for targets in self._by_size.values():
-            for t in targets:
-                t.release()
         self._by_size.clear()
         self.targets = []

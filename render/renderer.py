@@ -50,7 +50,14 @@ from render.cps import (
 )
 from render.exposure import Exposure, ExposurePass
 from render.gpu_scene import GpuScene
-from render.pass_graph import FrameContext, RenderPass, Resources, check_graph
+from render.pass_graph import (
+    BySize,
+    FrameContext,
+    RenderPass,
+    Resources,
+    check_graph,
+    release_all,
+)
 from render.passes import (
     CULL_MIN_LIGHTS,  # noqa: F401 - re-exported
     BlendPass,
@@ -191,6 +198,9 @@ class Renderer:
         self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
         self._field: GpuAmbientField | None = None  # the estimate's field, uploaded
         self.targets: list[EyeTargets] = []
+        self._eye_targets = BySize(
+            lambda size: [EyeTargets(ctx, *size) for _ in range(2)], release_all
+        )
         self.frames = 0
         self._errors_logged: set[str] = set()
         self._empty = GpuScene(ctx, Scene("empty", [], []))
@@ -316,11 +326,7 @@ class Renderer:
         )
 
     def _ensure_targets(self, width: int, height: int) -> None:
-        if self.targets and self.targets[0].size == (width, height):
-            return
-        for t in self.targets:
-            t.release()
-        self.targets = [EyeTargets(self.ctx, width, height) for _ in range(2)]
+        self.targets = self._eye_targets.get((width, height))
 
     # -- the frame -----------------------------------------------------------------------------
     def frame_context(
@@ -778,8 +784,8 @@ class Renderer:
         for p in (*self.passes, self.ids):
             p.release()
         self.cps.release()
-        for t in self.targets:
-            t.release()
+        self._eye_targets.clear()
+        self.targets = []
         if self.gpu_scene is not None:
             self.gpu_scene.release()
         self._empty.release()

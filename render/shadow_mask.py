@@ -29,10 +29,12 @@ import numpy as np
 from app.camera import EyeView
 from render.constants import SHADOW_MASK_SLOTS
 from render.pass_graph import (
+    BySize,
     FrameContext,
     RenderPass,
     Resources,
     bind_texture,
+    release_all,
     set_uniforms,
 )
 from render.shaders import ShaderLibrary
@@ -121,6 +123,9 @@ class ShadowMaskPass(RenderPass):
         self.step = STEPS["half"]
         self.detail = "half"  # render.shadow_detail: the step follows it and the lights
         self.targets: list[MaskTargets] = []
+        self._by_size: BySize[list[MaskTargets]] = BySize(
+            lambda size: [MaskTargets(self.ctx, size) for _ in range(2)], release_all
+        )
         self.lights = 0  # lights in the mask last frame
         self.min_lights = 1
 
@@ -136,12 +141,7 @@ class ShadowMaskPass(RenderPass):
         )
 
     def _ensure(self, eye_size: tuple[int, int]) -> None:
-        size = mask_size(eye_size, self.step)
-        if len(self.targets) == 2 and self.targets[0].size == size:
-            return
-        for t in self.targets:
-            t.release()
-        self.targets = [MaskTargets(self.ctx, size) for _ in range(2)]
+        self.targets = self._by_size.get(mask_size(eye_size, self.step))
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
         slots, shadowed = res.get("shadow_maps", ([], 0))
@@ -188,6 +188,5 @@ class ShadowMaskPass(RenderPass):
 
     def release(self) -> None:
         super().release()
-        for t in self.targets:
-            t.release()
+        self._by_size.clear()
         self.targets = []

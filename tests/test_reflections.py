@@ -101,7 +101,7 @@ def test_the_forward_path_draws_without_reflections():
 
 def test_a_change_of_render_scale_keeps_the_reflection():
     """The governor's render scale resizes the eyes' targets: the pass follows (its targets
-    kept for the last two sizes) and the mirror image is there at each size, without error."""
+    kept for the last sizes) and the mirror image is there at each size, without error."""
     scene = _room(0.1)
     s = Settings()
     s.set("render.exposure_mode", "manual")
@@ -120,7 +120,7 @@ def test_a_change_of_render_scale_keeps_the_reflection():
             h = lum.shape[0]
             peaks.append(float(lum[h // 2 :, lum.shape[1] // 2 - 5 : lum.shape[1] // 2 + 5].max()))
         assert not host.renderer.errors
-        sizes = sorted(t[0].size for t in host.renderer.reflections._by_size.values())
+        sizes = sorted(host.renderer.reflections._by_size.sizes())
     assert sizes == [(W * 3 // 4, H * 3 // 4), (W, H)]  # the two sizes drawn, kept
     assert peaks[1] > 3.0 * peaks[2]  # smaller: the floor mirrors the panel, off it does not
     assert peaks[0] == pytest.approx(peaks[3], rel=1e-3)  # back at full size: the same picture
