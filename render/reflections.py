@@ -16,7 +16,10 @@ picture and the sky are drawn and before glass:
    even light the ambient term assumed) is what to add (reflections.frag.glsl);
 4. that is enlarged bilinearly and added to the glossy pixels (reflect_apply.frag.glsl).
 
-Rough surfaces and rays that leave the screen keep the even light. The masks matter on
+With daylight on, a ray that meets nothing on its way and whose direction lands on the sky
+in the picture (an open window; the sky is infinitely far, so the point a direction tends to
+on screen shows the sky in that direction) takes the sky there. Rough surfaces and rays that
+leave the screen keep the even light. The masks matter on
 llvmpipe, which shades every pixel of a block through both sides of a branch but skips a
 block that the early depth test rejects whole: on the showroom at 2 x 640x720 the march at
 full size without them cost 75 ms, more than the lighting. Deterministic (one ray per pixel,
@@ -105,6 +108,7 @@ class ReflectionPass(RenderPass):
 
     name = "reflections"
     reads = ("depth", "normal", "albedo", "hdr")
+    optional_reads = ("sky",)  # with daylight: rays that leave through a window take the sky
     writes = ("hdr",)
 
     def __init__(self, ctx: moderngl.Context, shaders, res: Resources) -> None:
@@ -129,6 +133,7 @@ class ReflectionPass(RenderPass):
             "reflections.frag.glsl",
             {
                 "AMBIENT_FIELD": frame.ambient_field is not None,
+                "REFLECT_SKY": res.written("sky") and res.get("sky") is not None,
                 "REFLECT_STEPS": STEPS,
                 "REFLECT_CONE": CONE,
                 "REFLECT_MIPS": MIP_LEVELS,

@@ -124,3 +124,49 @@ def test_a_change_of_render_scale_keeps_the_reflection():
     assert sizes == [(W * 3 // 4, H * 3 // 4), (W, H)]  # the two sizes drawn, kept
     assert peaks[1] > 3.0 * peaks[2]  # smaller: the floor mirrors the panel, off it does not
     assert peaks[0] == pytest.approx(peaks[3], rel=1e-3)  # back at full size: the same picture
+
+
+def _open_room(sky: bool) -> np.ndarray:
+    """The glossy room without its far wall (+Z), at 10:00 on the default date with the sky on
+    or off: the left eye's HDR luminance looking level at the opening from 0.4 m above the
+    floor (reflections on, then off)."""
+    scene = _room(0.1)
+    scene.meshes = [m for m in scene.meshes if m.name not in ("wall21", "panel")]
+    s = Settings()
+    s.set("sky.enabled", sky)
+    s.set("render.exposure_mode", "manual")
+    out = []
+    for reflections in ("screen", "off"):
+        s.set("render.reflections", reflections)
+        with OffscreenHost(2 * W, H, s) as host:
+            host.set_scene(scene)
+            if sky and host.renderer.gpu_scene is not None:
+                with host.ctx:
+                    host.renderer.daylight.wait_for_visibility(host.renderer.gpu_scene)
+            cam = StereoCamera(s.stereo)
+            # Low and level: the floor ahead is seen at shallow angles, so the directions it
+            # mirrors are the sky's seen through the opening.
+            cam.set_pose((0.0, -HALF[1] + 0.4, -1.0), 180.0, 0.0)
+            frame = FrameInput(cam.eyes(*host.eye_size), gaze=(0.5, 0.5))
+            host.draw(frame)
+            host.draw(frame)
+            assert not host.renderer.errors
+            out.append(host.read_hdr(0)[:, :, :3] @ LUMA)
+    return np.stack(out)
+
+
+def test_a_glossy_floor_mirrors_the_sky_through_an_opening():
+    """Rays that leave through the opening meet nothing: with daylight they take the sky seen
+    in their direction (the floor near the opening several times brighter than its even
+    light), without it the background, which lights nothing, is not mirrored."""
+    on, off = _open_room(True)
+    column = slice(W // 2 - 20, W // 2 + 20)
+    centre = off[: H // 2, W // 2]  # level: the upper half is above the horizon
+    sky = np.flatnonzero(centre > 0.2 * centre.max())
+    assert sky.size > H // 8, "the sky is in view through the opening"
+    floor = slice(H // 2 + 12, H // 2 + 32)  # the floor a little below the opening's sill
+    assert on[floor, column].mean() > 2.0 * off[floor, column].mean()
+    assert on[sky] == pytest.approx(off[sky], rel=1e-3)  # the sky itself unchanged
+    dark_on, dark_off = _open_room(False)
+    assert dark_on[floor, column] == pytest.approx(dark_off[floor, column], rel=1e-3, abs=1e-6)
+    assert np.isfinite(on).all() and np.isfinite(dark_on).all()

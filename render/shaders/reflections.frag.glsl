@@ -4,6 +4,10 @@
 // the even light that the ambient specular term assumed (shading.glsl: the even light times
 // the split-sum environment BRDF), blurred by the surface's roughness. A varnished floor then
 // mirrors the window, the lamps' shades and the sunlit patch as a path tracer shows them.
+// REFLECT_SKY (the sky drawn this frame): a ray that meets nothing on its way and whose
+// direction lands on the sky in the picture (an open window, the sky beyond a glass door)
+// takes the sky there: the sky is infinitely far, so the point a direction tends to on screen
+// is where the picture shows the sky in that direction.
 // Traced at half resolution into the pass's own target; reflect_apply.frag.glsl adds it to the
 // glossy pixels of the lit picture.
 #include "shading.glsl"
@@ -73,6 +77,7 @@ bool reflection(ivec2 p, float depth, vec4 normal, out vec3 add) {
     float step_m = FIRST_STEP_M;
     float t_front = 0.0;
     bool met = false;
+    bool passed_behind = false;  // behind a surface too thick to be this ray's hit
     vec2 hit_uv = uv0;
     for (int i = 0; i < STEPS; ++i) {
         t += step_m;
@@ -93,13 +98,28 @@ bool reflection(ivec2 p, float depth, vec4 normal, out vec3 add) {
                 float hb;
                 met = probe(hi, hit_uv, hb);
                 t = hi;
+            } else {
+                passed_behind = true;
             }
             break;
         }
         t_front = t;
         step_m *= GROWTH;
     }
-    if (!met) return false;
+    bool sky = false;
+    if (!met) {
+#ifdef REFLECT_SKY
+        // The direction's point at infinity on screen, and the sky there (far depth).
+        if (passed_behind || g_c1.w <= 1e-4) return false;
+        hit_uv = g_c1.xy / g_c1.w * 0.5 + 0.5;
+        if (any(lessThan(hit_uv, vec2(0.0))) || any(greaterThan(hit_uv, vec2(1.0)))) return false;
+        if (texelFetch(u_gb_depth, min(ivec2(hit_uv * vec2(u_size)), u_size - 1), 0).r < 1.0)
+            return false;
+        sky = true;
+#else
+        return false;
+#endif
+    }
 
     // The reflected light: the picture where the ray met, blurred over the lobe's footprint
     // there (the cone of the roughness, seen from the eye), faded towards the screen's edges
@@ -107,7 +127,9 @@ bool reflection(ivec2 p, float depth, vec4 normal, out vec3 add) {
     float cone = roughness * roughness * REFLECT_CONE;  // the lobe's half-width, radians (about)
     vec3 hit = origin + R * t;
     float focal_px = 0.5 * float(u_size.y) * abs(u_view_projection[1][1]);  // px at depth 1
-    float footprint_px = 2.0 * t * cone / max(distance(hit, u_eye), 1e-3) * focal_px;
+    // The lobe's width at the hit as seen from the eye (at the sky: its angle alone).
+    float footprint_px = sky ? 2.0 * cone * focal_px
+                             : 2.0 * t * cone / max(distance(hit, u_eye), 1e-3) * focal_px;
     float lod = clamp(log2(max(footprint_px, 1.0)), 0.0, float(REFLECT_MIPS - 1));
     vec3 seen = textureLod(u_reflect_source, hit_uv, lod).rgb;
     vec2 edge = min(hit_uv, 1.0 - hit_uv);
