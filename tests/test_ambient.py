@@ -161,3 +161,27 @@ def test_a_glowing_pane_lets_the_sky_and_the_sun_in():
         assert through == pytest.approx(
             AmbientProbe(open_box).estimate(lights, sky).ambient, rel=0.1
         )
+
+
+def test_a_thin_panel_on_a_wall_takes_its_bounce_light_not_the_wall_it_hides():
+    """A white panel 1 mm in front of most of a white wall (a large picture, a wainscot)
+    changes nothing a path tracer would show: the room's even light stays within 5 % of the
+    bare room's. The wall behind it is covered (something lies on it) and lit by next to
+    nothing; a ray that meets the panel must take the panel's light, not the hidden wall's
+    (taking it lost 10 % of the bounce per bounce on the corridor)."""
+    albedo = 0.7
+    lamp = PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)
+    bare = _box(albedo, [lamp])
+    x = HALF[0] - 0.001  # just in front of the +X wall, facing into the room
+    corners = np.array(
+        [
+            [x, -0.9 * HALF[1], -0.9 * HALF[2]],
+            [x, -0.9 * HALF[1], 0.9 * HALF[2]],
+            [x, 0.9 * HALF[1], 0.9 * HALF[2]],
+            [x, 0.9 * HALF[1], -0.9 * HALF[2]],
+        ]
+    )
+    panel = _quad("panel", corners, np.array([-1.0, 0.0, 0.0]), 0)
+    panelled = _box(albedo, [lamp], extra=[panel])
+    plain, with_panel = estimate_ambient(bare), estimate_ambient(panelled)
+    assert with_panel.ambient == pytest.approx(plain.ambient, rel=0.05)
