@@ -73,7 +73,7 @@ from app.ambient_field import (
     build_field,
     cell_size,
 )
-from app.photons import _mesh_optics, _scene_geometry
+from app.photons import FRONT_MIN_COS, _mesh_optics, _scene_geometry
 from app.raycast import RayCaster
 from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff, range_window
 from app.sky_light import occluders
@@ -167,10 +167,11 @@ class AmbientProbe:
         seed: int = SEED,
     ) -> None:
         self.points = np.zeros((0, 3))
+        self.emitted_rgb = np.zeros((0, 3))  # per face, the glowing surfaces' light (lux, RGB)
         self.mean_albedo = 0.0
         self._cell: float | None = None
         self._record: list[tuple[np.ndarray, np.ndarray]] | None = None
-        tris, owner, _vn = _scene_geometry(scene)
+        tris, owner, vnormal = _scene_geometry(scene)
         if tris.shape[0] == 0:
             return
         # Rays meet what hides light in the renderer: glowing panes and glass let it through
@@ -182,14 +183,14 @@ class AmbientProbe:
             caster = cached if whole and isinstance(cached, RayCaster) else RayCaster(blocking)
         self.caster: RayCaster = caster
         finite = np.isfinite(tris).all(axis=(1, 2))
-        tris, owner = tris[finite], owner[finite]
+        tris, owner, vnormal = tris[finite], owner[finite], vnormal[finite]
         cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
         length = np.linalg.norm(cross, axis=1)
         area = 0.5 * length
         if tris.shape[0] == 0 or not np.isfinite(area).all() or area.sum() <= 0.0:
             return
         normal = cross / np.maximum(length, 1e-30)[:, None]
-        rho_mesh, _emit = _mesh_optics(scene, [])
+        rho_mesh, emit_mesh = _mesh_optics(scene, [])
         rho_rgb = rho_mesh[owner]
         rho = rho_rgb @ LUMA
         self.mean_albedo = float((rho * area).sum() / area.sum())
@@ -224,16 +225,25 @@ class AmbientProbe:
         # surface with something lying on it has met that something, so a covered face never
         # stands for a hit (below), and which faces are covered is known from the casts.
         casts = []
+        # Glowing surfaces (a lamp's shade, a lit panel, a ceiling's light strip): the renderer
+        # draws them but lights nothing with them; a path tracer's rays that meet one take its
+        # light, so each face takes what its rays see of them (pi times their mean radiance),
+        # and it bounces as the lamps' light does (``emitted_rgb``).
+        glow = _glowing(tris, owner, vnormal, emit_mesh)
+        self.emitted_rgb = np.zeros((2 * n, 3))
         for k, side in enumerate((1.0, -1.0)):
             origins = self.points + self.normal * side * self.eps
             rays = []
             for _ in range(GATHER_RAYS):
                 d = _cosine(self.normal * side, rng.random(n), rng.random(n))
                 rays.append((d, *caster.cast_triangles(origins, d)))
+                if glow is not None:
+                    self.emitted_rgb[k::2] += _glow_seen(glow, origins, d, rays[-1][1])
             dist = np.stack([r[1] for r in rays])
             self.crease[k::2] = np.mean(dist < CREASE_M, axis=0)
             self.covered[k::2] = np.mean(dist < COVERED_M, axis=0) >= COVERED_SHARE
             casts.append((origins, rays))
+        self.emitted_rgb *= math.pi / GATHER_RAYS
         # Where each face's rays hit (NaN: a miss) and the hit surface's normal turned to the
         # ray: the sun's first bounce is found there exactly (its patch is small and bright).
         self.hit_at = np.empty((2 * n, GATHER_RAYS, 3), np.float32)
@@ -341,7 +351,10 @@ class AmbientProbe:
         ``sky_sh``: the sky's light (``app.sky.SkyBake.sh``, light leaving a white surface per
         normal, cd/m2) with daylight on; a face then also takes pi SH(n) times the share of
         its rays that leave the scene (1 - c), and that light bounces as the lamps' does."""
-        if not len(self.points) or (not lights and sky_sh is None):
+        # With daylight on, a glowing pane stands for the sky beyond it, whose light through
+        # the openings is counted instead (and a lamp's glow is small beside daylight).
+        glowing = len(self.points) > 0 and bool(self.emitted_rgb.any()) and sky_sh is None
+        if not len(self.points) or (not lights and sky_sh is None and not glowing):
             return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
         n = len(self.points)
         suns = [lt for lt in lights if lt.kind == "directional"]
@@ -369,6 +382,9 @@ class AmbientProbe:
                 e0_suns[k::2] = _direct(
                     self.points, self.normal * side, suns, self.caster, self.eps
                 )
+        if glowing:  # the glowing surfaces' light: not drawn, so the even light carries it
+            e0, e0_rgb = e0 + self.emitted_rgb @ LUMA, e0_rgb + self.emitted_rgb
+            beyond_rgb = beyond_rgb + self.emitted_rgb
         c = np.concatenate([self.closure[0][:, None], self.closure[1][:, None]], 1).ravel()
         seen = c.sum()
         if seen <= 0.0:  # nothing sees anything: an open sheet, no light comes back
@@ -632,6 +648,53 @@ def _cosine(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     b = np.cross(n, t)
     z = np.sqrt(np.maximum(1.0 - u1, 0.0))
     return t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * z[:, None]
+
+
+@dataclass(frozen=True)
+class _Glow:
+    """The glowing triangles, each one's radiance (linear RGB, cd/m2 per unit colour) and the
+    side it glows from: +1 / -1 along its plane's normal, 0 both (the photon tracer's rule,
+    ``app.photons``: the side its vertex normals point to, so the ceiling behind a downlight
+    set a few millimetres below it is not lit by the light's back)."""
+
+    caster: RayCaster
+    radiance: np.ndarray  # (T, 3), aligned with caster.tri
+    normal: np.ndarray  # (T, 3) the plane's unit normal
+    front: np.ndarray  # (T,) +1, -1 or 0
+
+
+def _glowing(
+    tris: np.ndarray, owner: np.ndarray, vnormal: np.ndarray, emit_mesh: np.ndarray
+) -> _Glow | None:
+    """The scene's glowing triangles (of meshes whose material emits), None when none does."""
+    if not len(tris) or not len(emit_mesh):
+        return None
+    glows = (emit_mesh[np.clip(owner, 0, len(emit_mesh) - 1)] > 0.0).any(axis=1)
+    glows &= np.isfinite(tris).all(axis=(1, 2))
+    if not glows.any():
+        return None
+    tri, mesh, vn = tris[glows], owner[glows], np.nan_to_num(vnormal[glows], nan=0.0)
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal = cross / np.maximum(np.linalg.norm(cross, axis=1), 1e-30)[:, None]
+    cos = np.einsum("ij,ij->i", vn, normal) / np.maximum(np.linalg.norm(vn, axis=1), 1e-20)
+    front = np.where(cos > FRONT_MIN_COS, 1, np.where(cos < -FRONT_MIN_COS, -1, 0))
+    caster = RayCaster(tri, np.arange(len(tri)))
+    if len(caster.tri) == 0:
+        return None
+    kept = caster.owner  # the input triangles the caster kept, in its order
+    return _Glow(caster, emit_mesh[mesh[kept]], normal[kept], front[kept])
+
+
+def _glow_seen(glow: _Glow, origins: np.ndarray, dirs: np.ndarray, blocked: np.ndarray):
+    """The glowing surfaces' radiance along each ray (N, 3): where a ray meets the glowing
+    side of one before anything that hides light (``blocked``: the distance to that, inf on
+    a miss)."""
+    dist, tri = glow.caster.cast_triangles(origins, dirs)
+    seen = np.isfinite(dist) & (tri >= 0) & (dist < blocked)
+    t = np.maximum(tri, 0)
+    facing = np.einsum("ij,ij->i", glow.normal[t], dirs) * glow.front[t]  # < 0: its glow side
+    seen &= (glow.front[t] == 0) | (facing < 0.0)
+    return np.where(seen[:, None], glow.radiance[t], 0.0)
 
 
 def probe_for(scene: Scene, caster: RayCaster | None = None) -> AmbientProbe:

@@ -444,8 +444,9 @@ class _Geometry:
 
 
 def _mesh_optics(scene: Scene, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Diffuse reflectance and emitted radiance per mesh, (M, 3) each, finite and >= 0."""
-    texture_mean: dict[int, np.ndarray] = {}
+    """Diffuse reflectance and emitted radiance (the emissive factor times the emissive map's
+    mean) per mesh, (M, 3) each, finite and >= 0."""
+    texture_mean: dict[object, np.ndarray] = {}
     rho = np.zeros((len(scene.meshes), 3))
     emit = np.zeros((len(scene.meshes), 3))
     for i, m in enumerate(scene.meshes):
@@ -470,13 +471,19 @@ def _mesh_optics(scene: Scene, notes: list[str]) -> tuple[np.ndarray, np.ndarray
                         np.nanmean(np.where(np.isfinite(c[:, :3]), c[:, :3], np.nan), axis=0), 1.0
                     )
         rho[i] = np.clip(r, 0.0, 1.0)
-        emit[i] = np.clip(
+        glow = np.clip(
             np.nan_to_num(
                 np.asarray(mat.emissive, np.float64)[:3], nan=0.0, posinf=0.0, neginf=0.0
             ),
             0.0,
             1e6,
         )
+        et = mat.emissive_texture
+        if glow.any() and et is not None and 0 <= et < len(scene.textures):
+            if ("emissive", et) not in texture_mean:  # the map's mean (a bulb in a dark disc)
+                texture_mean[("emissive", et)] = _texture_mean_linear(scene.textures[et].rgba)
+            glow = glow * texture_mean[("emissive", et)]
+        emit[i] = glow
     return rho, emit
 
 

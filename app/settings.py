@@ -201,10 +201,12 @@ class RenderSettings:
     )
     ambient_estimate: bool = _opt(
         True,
-        "Works the even light out from the lamps and the sun: how much of their light the "
-        "room's surfaces send back, so a pale lit room gets more of it than a dark one, "
-        "in the colour of the lamps and of what it bounced off; it also carries a lamp's "
-        "light past the distance the lamp is drawn to. Off: the fixed ambient light.",
+        "Works the even light out from the lamps, the sun and glowing surfaces (a lamp's "
+        "shade, a lit panel): how much of their light the room's surfaces send back, so a "
+        "pale lit room gets more of it than a dark one, in the colour of the lamps and of "
+        "what it bounced off; it also carries a lamp's light past the distance the lamp is "
+        "drawn to, and a glowing surface's light, which the picture draws only as a glow. "
+        "Off: the fixed ambient light.",
         label="Even light from the lamps",
         paper="Split-flux estimate of the indirect light (lighting design's enclosure model)",
     )
