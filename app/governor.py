@@ -75,6 +75,10 @@ AIM = 0.9
 RESTORE_AIM = 0.85
 #: Frames between two changes (the timers settle on the new knobs first).
 MIN_FRAMES = 4
+#: Unless each frame since (the first aside) took over FAR_OVER x the budget: the next step
+#: comes after FAST_FRAMES (a scene just opened, a view with far more lights).
+FAR_OVER = 1.5
+FAST_FRAMES = 3
 #: Weight of the exponential moving averages (frame time, per-category costs).
 EMA = 0.3
 #: Frames not learnt from (shader variants compile, targets are made).
@@ -375,9 +379,13 @@ class Governor:
         budget = self.aim_ms()
         if self._restored is not None and self.frames - self._restored[1] > 6 * MIN_FRAMES:
             self._restored = None
-        if self.since_change >= MIN_FRAMES and self._pending is not None:
+        ready = self.since_change >= MIN_FRAMES
+        if not ready and self.since_change >= FAST_FRAMES and self.ema_ms is not None:
+            measured = list(self._local)[-min(self.since_change - 1, len(self._local)) :]
+            ready = bool(measured) and min(measured) > FAR_OVER * budget
+        if ready and self._pending is not None:
             self._learn_step(user)
-        if self.since_change >= MIN_FRAMES and self.ema_ms is not None:
+        if ready and self.ema_ms is not None:
             # The usual frame since the last change: one slow frame (the machine's other
             # work) does not lower the knobs; the aim already leaves room for such frames.
             since = list(self._local)[-min(self.since_change, len(self._local)) :]

@@ -313,8 +313,8 @@ class RenderSettings:
     shadow_updates_per_frame: int = _opt(
         2,
         "How many lights may redraw their shadows at a time after something moved or came "
-        "into view (a lamp's shadow over three frames); the others keep their last shadows "
-        "a little longer, so the frame rate holds.",
+        "into view (a lamp's shadow over three frames, six at one light); the others keep "
+        "their last shadows a little longer, so the frame rate holds.",
         label="Shadow redraws per frame",
         unit="lights",
         lo=1,

@@ -10,9 +10,10 @@ After a new scene's first frame (which draws every map), at most
 ``render.shadow_updates_per_frame`` lights are redrawn at a time (the most prominent first), and
 each of them by at most ``FACES_PER_FRAME`` tiles a frame: a point light's six faces take three
 frames (a lamp coming into view while walking cost one frame 10-15 ms in the corridor, over the
-30 fps budget; a third of that fits). A light being redrawn keeps its last map's matrices until
-its new one is complete (a moved lamp's shadow may mix old and new faces for two frames), or has
-no shadow until its first. A light whose wanted tile size changes by one
+30 fps budget; a third of that fits), six at one light at a time (the frame-rate governor's
+lowered step: about 2 ms a frame in the corridor). A light being redrawn keeps its last map's
+matrices until its new one is complete (a moved lamp's shadow may mix old and new faces for a
+few frames), or has no shadow until its first. A light whose wanted tile size changes by one
 step (2x) keeps its tiles.
 
 The pass fills the ``Shadows`` uniform block (shadows.glsl, binding 1) and binds the atlas to its
@@ -395,7 +396,8 @@ class ShadowPass(RenderPass):
         # A new scene's first frame draws every map (it stalls for its shaders anyway, and a
         # still picture is then complete); later changes wait for the budget.
         budget = len(dirty) if first else self.budget
-        per_light = None if first else FACES_PER_FRAME
+        # One light at a time (the governor's lowered step): one tile a frame, half the cost.
+        per_light = None if first else (FACES_PER_FRAME if self.budget > 1 else 1)
         for i in dirty[:budget]:
             self._draw(frame, i, lights[i], per_light)
         self.pending = sum(1 for i in dirty if self.maps[i].drawn_key != keys[i])

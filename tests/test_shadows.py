@@ -319,11 +319,15 @@ def test_the_budget_limits_map_updates_per_frame(host):
     with host.ctx:  # a light switched on later waits for its turn, without a shadow
         host.renderer.gpu_scene.set_lights([*moved, Light((1.0, 2.0, 3.0), (1, 1, 1), 5.0, 8.0)])
     host.settings.set("render.shadow_updates_per_frame", 1)
-    drawn = []
-    for _ in range(3):
+    drawn, faces = [], []
+    for _ in range(6):
+        before = maps.face_renders
         host.draw(fi)
         drawn.append((maps.updates, maps.shadowed, maps.pending))
-    assert drawn == [(0, 6, 1), (0, 6, 1), (1, 7, 0)]
+        faces.append(maps.face_renders - before)
+    # One light at a time (the governor's lowered step): one cube face a frame, six frames.
+    assert faces == [1] * 6
+    assert drawn == [(0, 6, 1)] * 5 + [(1, 7, 0)]
     assert maps.memory_bytes > 0
 
 
