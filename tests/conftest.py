@@ -153,3 +153,21 @@ def scenes_dir() -> Path:
             "beside the checkout, or set VRPREVIEW_SCENES)"
         )
     return SCENES
+
+
+@pytest.fixture(scope="module")
+def edge_host():
+    """A small host drawing a bright square on a dark wall (tests.test_governor.edge_scene),
+    shadows off: sharp edges for the upscalers and the render scale."""
+    from app.settings import Settings
+    from render.offscreen import OffscreenHost
+    from tests.test_governor import H, W, edge_scene
+
+    s = Settings()
+    s.set("render.shadows", "off")
+    h = OffscreenHost(W, H, s)
+    h.set_scene(edge_scene())
+    h.set_text_image(None)
+    yield h
+    assert not h.renderer.errors
+    h.close()

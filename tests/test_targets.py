@@ -2,9 +2,7 @@
 scale the governor steps back to and the warm-up's small frames do not remake every target."""
 
 import numpy as np
-import pytest
 
-from app.settings import Settings
 from render.pass_graph import BySize
 
 
@@ -37,22 +35,8 @@ def test_the_last_sizes_are_kept_and_the_least_recently_used_released():
     assert all(m.released for m in made) and cache.sizes() == []
 
 
-@pytest.fixture(scope="module")
-def host():
-    from render.offscreen import OffscreenHost
-    from tests.test_governor import H, W, edge_scene
-
-    s = Settings()
-    s.set("render.shadows", "off")
-    h = OffscreenHost(W, H, s)
-    h.set_scene(edge_scene())
-    h.set_text_image(None)
-    yield h
-    assert not h.renderer.errors
-    h.close()
-
-
-def test_a_scale_drawn_again_reuses_its_targets_and_draws_the_same_picture(host):
+def test_a_scale_drawn_again_reuses_its_targets_and_draws_the_same_picture(edge_host):
+    host = edge_host
     from tests.test_governor import draw
 
     half = draw(host, 0.5)
@@ -65,11 +49,12 @@ def test_a_scale_drawn_again_reuses_its_targets_and_draws_the_same_picture(host)
     assert not np.array_equal(full, half)
 
 
-def test_coarse_shading_history_is_forgotten_when_a_kept_size_returns(host):
+def test_coarse_shading_history_is_forgotten_when_a_kept_size_returns(edge_host):
     """The temporal filter blends the last frame of the same size: after frames of another
     size, what it kept is not the last frame, so the targets come back without history."""
     from tests.test_governor import draw
 
+    host = edge_host
     host.settings.set("cps.mode", "cps")
     host.settings.set("cps.temporal", True)
     try:

@@ -4,7 +4,6 @@ import moderngl
 import numpy as np
 import pytest
 
-from app.settings import Settings
 from render.context import create_headless
 from render.shaders import ShaderLibrary
 from render.upscale import rcas_con, sharpen_stops, upscale_defines
@@ -123,21 +122,6 @@ def test_sharpness_maps_to_fsr_stops():
     assert rcas_con(2.0) == 0.25
     assert "RCAS" not in upscale_defines(SRC, SRC, "easu", 0.9)  # nothing enlarged: no pass
     assert upscale_defines(SRC, DST, "bilinear", 0.9) == {"UPSCALE_BILINEAR": True}
-
-
-@pytest.fixture(scope="module")
-def edge_host():
-    from render.offscreen import OffscreenHost
-    from tests.test_governor import H, W, edge_scene
-
-    s = Settings()
-    s.set("render.shadows", "off")
-    h = OffscreenHost(W, H, s)
-    h.set_scene(edge_scene())
-    h.set_text_image(None)
-    yield h
-    assert not h.renderer.errors
-    h.close()
 
 
 def test_the_present_pass_sharpens_a_scaled_frame_without_changing_it(edge_host):
