@@ -73,7 +73,7 @@ from app.ambient_field import (
     build_field,
     cell_size,
 )
-from app.photons import FRONT_MIN_COS, _mesh_optics, _scene_geometry
+from app.photons import _mesh_optics, _scene_geometry, emitting_side
 from app.raycast import RayCaster
 from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff, range_window
 from app.sky_light import occluders
@@ -673,11 +673,10 @@ def _glowing(
     glows &= np.isfinite(tris).all(axis=(1, 2))
     if not glows.any():
         return None
-    tri, mesh, vn = tris[glows], owner[glows], np.nan_to_num(vnormal[glows], nan=0.0)
+    tri, mesh = tris[glows], owner[glows]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     normal = cross / np.maximum(np.linalg.norm(cross, axis=1), 1e-30)[:, None]
-    cos = np.einsum("ij,ij->i", vn, normal) / np.maximum(np.linalg.norm(vn, axis=1), 1e-20)
-    front = np.where(cos > FRONT_MIN_COS, 1, np.where(cos < -FRONT_MIN_COS, -1, 0))
+    front = emitting_side(vnormal[glows], normal)
     caster = RayCaster(tri, np.arange(len(tri)))
     if len(caster.tri) == 0:
         return None

@@ -432,15 +432,21 @@ class _Geometry:
         rho_m, emit_m = _mesh_optics(scene, notes)
         rho = rho_m[mesh] if len(mesh) else np.zeros((0, 3))
         emissive = emit_m[mesh] if len(mesh) else np.zeros((0, 3))
-        with np.errstate(invalid="ignore"):
-            cos = np.einsum("ij,ij->i", np.nan_to_num(vnormal, nan=0.0), normal) / np.maximum(
-                np.linalg.norm(np.nan_to_num(vnormal, nan=0.0), axis=1), 1e-20
-            )
-        front = np.where(cos > FRONT_MIN_COS, 1, np.where(cos < -FRONT_MIN_COS, -1, 0))
+        front = emitting_side(vnormal, normal)
         scale = _diagonal(tri.reshape(-1, 3))
         return _Geometry(
             tri, normal, area, usable, rho, emissive, front.astype(np.int8), OFFSET_SCALE * scale
         )
+
+
+def emitting_side(vnormal: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Per triangle the side a glowing one emits from, +1 / -1 along its plane's unit
+    ``normal`` or 0 for both: the side its mean vertex normal ``vnormal`` points to, both
+    where that is missing (NaN) or lies in the plane."""
+    vn = np.nan_to_num(np.asarray(vnormal, np.float64), nan=0.0)
+    with np.errstate(invalid="ignore"):
+        cos = np.einsum("ij,ij->i", vn, normal) / np.maximum(np.linalg.norm(vn, axis=1), 1e-20)
+    return np.where(cos > FRONT_MIN_COS, 1, np.where(cos < -FRONT_MIN_COS, -1, 0))
 
 
 def _mesh_optics(scene: Scene, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:

@@ -348,15 +348,9 @@ def edge_scene() -> Scene:
 
 
 @pytest.fixture(scope="module")
-def host():
-    s = Settings()
-    s.set("render.shadows", "off")
-    h = OffscreenHost(W, H, s)
-    h.set_scene(edge_scene())
-    h.set_text_image(None)
-    yield h
-    assert not h.renderer.errors
-    h.close()
+def host(edge_host):
+    """The edge scene's host (tests/conftest.py ``edge_host``)."""
+    return edge_host
 
 
 def frame_of(host: OffscreenHost) -> FrameInput:
