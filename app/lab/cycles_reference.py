@@ -303,9 +303,10 @@ class ReferenceJob:
     exposure: float
     denoise: bool = True
     threads: int = 0  # 0: Blender's choice (all cores)
-    # Cycles' light path length: None its default (12, every bounce), 0 the direct light
-    # alone (a camera ray's hit lit by the lamps, the sun and the sky, with shadows), N up to
-    # N bounces. ``--reference-bounces``: full minus direct is Cycles' indirect light.
+    # Cycles' light path length: None the whole path (``blender_scene.FULL_BOUNCES``; Blender's
+    # own default stops after 4 diffuse bounces), 0 the direct light alone (a camera ray's hit
+    # lit by the lamps, the sun and the sky, with shadows), N up to N bounces.
+    # ``--reference-bounces``: full minus direct is Cycles' indirect light.
     max_bounces: int | None = None
     arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     texture_images: list[np.ndarray] = field(default_factory=list, repr=False)
