@@ -90,6 +90,11 @@ NEAREST = 24  # points looked at for the one on a ray's hit surface
 CREASE_M = (
     0.75  # a ray that ends this close met a nearby surface (the AO reach, render.ao_radius_m)
 )
+#: A face deeper in a crease than this (the share of its rays ending within CREASE_M: under a
+#: sofa, between a cabinet and the wall) stays out of the field by place: no one sees it, and
+#: its little light spread over the cells round it darkened the open surfaces beside it
+#: (docs/reference_flip.md, stop 31).
+FIELD_CREASE_MAX = 0.8
 BOUNCES = 48  # bounces summed; the rest as a geometric tail
 CHROMA_BOUNCES = 6  # bounces followed in colour (the colour settles after a few)
 SEED = 14
@@ -477,8 +482,10 @@ class AmbientProbe:
         self, total: np.ndarray, closure: np.ndarray, levels: np.ndarray, chroma: np.ndarray
     ) -> AmbientField | None:
         """The faces' own bounce light on a grid (app.ambient_field): those that see the
-        scene and have nothing lying on them."""
-        faces = np.flatnonzero((closure > 0.0) & ~self.covered)
+        scene, have nothing lying on them and are not deep in a crease
+        (``FIELD_CREASE_MAX``)."""
+        open_faces = (closure > 0.0) & ~self.covered & (self.crease <= FIELD_CREASE_MAX)
+        faces = np.flatnonzero(open_faces)
         if not len(faces):
             return None
         facing = self.normal[faces // 2] * np.where(faces % 2 == 0, 1.0, -1.0)[:, None]
