@@ -48,14 +48,23 @@ MIN_FACE, MAX_FACE = 256, 1024  # a lamp's tile edge, texels
 FACES_PER_FRAME = 2  # tiles a light being redrawn gets a frame (after a new scene's first)
 SUN_TILE = 2048
 NEAR_M = 0.05  # perspective maps' near plane
+# glPolygonOffset(factor, units) while drawing a lamp's depth: against acne on the surfaces a
+# lamp lights at a slant. The sun's map is drawn the other way, its occluders a slope's texel
+# towards the sun: its texels are half a centimetre, so a wall or a skirting board the sun
+# grazes changes depth by several centimetres a texel, and with the lamps' offset pushed back
+# a decimetre the sun leaked in dotted lines where walls meet the ceiling and along the
+# skirting boards (a soft edge's taps still leaked without any offset). The normal offset in
+# shadows.glsl keeps a sunlit floor free of acne down to a 12-degree sun (at -1.25 a low
+# sun's soft edge speckles the floor: tests/test_shadows.py guards both sides).
 SLOPE_OFFSET = (2.0, 4.0)
+SUN_SLOPE_OFFSET = (-1.0, 0.0)
 # Soft shadows: the edge's half width on the receiving surface (metres); a lamp's shade is wide,
 # the sun's disc small (half a degree: about 1 cm at a metre or two from the blinds).
 SOFT_RADIUS_M = {
     "point": 0.025,
     "spot": 0.02,
     "directional": 0.006,
-}  # glPolygonOffset(factor, units) while drawing depth
+}
 # Cube faces: the direction each looks along and its up vector.
 CUBE_FACES = (
     ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
@@ -502,7 +511,7 @@ class ShadowPass(RenderPass):
         fbo.use()
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        ctx.polygon_offset = SLOPE_OFFSET
+        ctx.polygon_offset = SUN_SLOPE_OFFSET if light.kind == "directional" else SLOPE_OFFSET
         casters = [k for k in scene.standalone if casts(scene.meshes[k])]
         groups = [k for k, g in enumerate(scene.groups) if casts(g)]  # merged meshes
         for f in faces_now:

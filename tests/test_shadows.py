@@ -17,6 +17,7 @@ import pytest
 
 from app import sky
 from app.gltf import gltf_lights
+from app.raycast import RayCaster
 from app.scene import Light, Material, Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings
@@ -168,17 +169,26 @@ def test_soft_shadows_have_a_graded_edge_and_hard_ones_do_not(host, detail, cris
     assert between(soft) >= 2
 
 
+def _sun(elevation_deg: float) -> Light:
+    """A sun at this height above the horizon, from the north-east."""
+    e = math.radians(elevation_deg)
+    travel = (-math.cos(e) * 0.6, -math.sin(e), math.cos(e) * 0.8)
+    return Light((0.0, 0.0, 0.0), (1, 1, 1), 5.0, kind="directional", direction=travel)
+
+
 @pytest.mark.parametrize("shadows", ["hard", "soft"])
-@pytest.mark.parametrize("kind", ["point", "spot"])
+@pytest.mark.parametrize("kind", ["point", "spot", "sun", "low sun"])
 @pytest.mark.parametrize("detail", ["full", "half"])
 def test_a_flat_lit_floor_has_no_acne(host, shadows, kind, detail):
     """Shadows on a floor nothing stands on change nothing: no speckles, no stripes (per pixel
-    and through the mask)."""
-    light = (
-        Light((0.0, 2.5, 0.0), (1, 1, 1), 20.0, 10.0)
-        if kind == "point"
-        else spot_towards((-0.5, 0.0, 0.5), inner=40.0, outer=60.0)
-    )
+    and through the mask), under a lamp, a spot, the sun high and the sun low (12 degrees: its
+    map's texels stretched over the floor, and no depth offset for the sun's map)."""
+    light = {
+        "point": lambda: Light((0.0, 2.5, 0.0), (1, 1, 1), 20.0, 10.0),
+        "spot": lambda: spot_towards((-0.5, 0.0, 0.5), inner=40.0, outer=60.0),
+        "sun": lambda: _sun(45.0),
+        "low sun": lambda: _sun(12.0),
+    }[kind]()
     scene = box_scene([light], box=False)
     img, fi = hdr(host, scene, shadows, render__shadow_detail=detail)
     host.settings.set("render.shadow_detail", Settings().render.shadow_detail)
@@ -476,3 +486,64 @@ def test_the_photon_tracer_emits_a_spot_within_its_cone_only():
     first_hit = dist2 / np.maximum(dist2, 0.01)
     expected = 4 * np.pi * spot.intensity * np.mean(cone * first_hit) * 0.5
     assert pm.power.sum(axis=0, dtype=np.float64) == pytest.approx([expected] * 3, rel=0.05)
+
+
+def _sunlit_showroom() -> tuple[Scene, np.ndarray]:
+    """The showroom with the default 10:00 sun (as the blinds test) and the way to the sun."""
+    scene = build_showroom(0)
+    towards_sun = sky.sun_direction(dataclasses.replace(Settings().sky, north_deg=scene.north_deg))
+    scene.lights.append(
+        Light((0, 0, 0), (1.0, 0.95, 0.9), 8.0, kind="directional", direction=tuple(-towards_sun))
+    )
+    return scene, np.asarray(towards_sun, float)
+
+
+# On the north wall's skirting board (10 cm high, 1.5 cm deep) and the floor before it.
+SKIRTING_EDGE = ((0.1, -2.996), (0.1, -2.99), (0.0, -2.981), (0.0, -2.975))
+
+
+@pytest.mark.parametrize("shadows", ["hard", "soft"])
+@pytest.mark.parametrize(
+    "view, points",
+    [  # the floor along the north wall's skirting board; the south wall under the ceiling
+        (
+            Viewpoint((-1.0, 0.5, -2.5), 0.0, -45.0),
+            [(x, y, z) for x in np.linspace(-1.4, -0.6, 41) for y, z in SKIRTING_EDGE],
+        ),
+        (
+            Viewpoint((-1.0, 2.0, 1.8), 180.0, 40.0),
+            [(x, 3.0 - d, 2.999) for x in np.linspace(-1.4, -0.6, 41) for d in (0.01, 0.02)],
+        ),
+    ],
+    ids=["skirting", "ceiling"],
+)
+def test_the_sun_does_not_leak_in_where_walls_meet(shadows, view, points):
+    """Points a ray cast towards the sun finds shut in (the room's walls, ceiling and skirting
+    boards are in its way) stay dark a few millimetres from the corner: the sun's map once put
+    dotted lines of sunlight along the skirting boards and under the ceiling."""
+    s = Settings()
+    s.render.overlay = False
+    s.render.ambient = 0.0
+    s.render.ambient_estimate = False
+    s.render.reflections = "off"  # the light here is the sun's alone
+    scene, towards_sun = _sunlit_showroom()
+    scene.spawn = view
+    casters = [
+        np.asarray(m.positions)[np.asarray(m.indices, np.int64)]
+        for m in scene.meshes
+        if not any(scene.materials[m.material].emissive)
+        and scene.materials[m.material].alpha_mode != "BLEND"
+    ]  # what casts a shadow (render.shadows.casts): not the glowing pane
+    tris = np.concatenate(casters)
+    caster = RayCaster(tris, np.zeros(len(tris), np.int64))
+    pts = np.asarray(points, float)
+    dist, _ = caster.cast_triangles(pts + towards_sun * 1e-4, np.tile(towards_sun, (len(pts), 1)))
+    assert np.isfinite(dist).all(), "every point is in the room's shade"
+    with OffscreenHost(W, H, s) as host:
+        img, fi = hdr(host, scene, shadows)
+        off, _ = hdr(host, scene, "off")
+        assert not host.renderer.errors
+    sunlit = np.array([at(off, fi, p) for p in pts])  # the sun's light there, unshadowed
+    assert sunlit.min() > 0.0
+    ratio = np.array([at(img, fi, p) for p in pts]) / sunlit
+    assert ratio.max() < 0.05, (ratio.max(), pts[ratio.argmax()])
