@@ -5,7 +5,7 @@ dim corridor and a sunlit room. A path tracer's indirect light is the lamps' lig
 walls and furniture; this finds it with a small radiosity solution on surface points spread
 over the scene by area, and takes its mean over what a person standing in the room sees.
 
-1. **The probe** (once per scene, :class:`AmbientProbe`): 2048 surface points, their
+1. **The probe** (once per scene, :class:`AmbientProbe`): 2048-4096 surface points, their
    reflectance (the photon tracer's, ``app.photons``: base colour x texture mean x vertex
    colours x (1 - metallic)) and, for each of their two faces, ``GATHER_RAYS`` cosine-weighted
    rays: the point nearest to what each ray hits on the hit's own surface, and the face of it
@@ -17,10 +17,11 @@ over the scene by area, and takes its mean over what a person standing in the ro
    least ``STANDING_CLOSURE``) and have headroom (nothing within ``STANDING_HEADROOM_M``
    above), raised to eye height, plus the scene's spawn; from each, ``VIEW_RAYS`` rays in all
    directions find the faces a person there sees.
-2. **The estimate** (per set of lights and sky, a few milliseconds): the direct irradiance
-   ``E_0`` of each face (the lamps' shadowed light, the sun's, the sky's through the
-   openings), then bounce by bounce ``E_(n+1)(x) = mean over x's rays of rho_h E_n(h)``
-   (a Lambertian face's exitance ``rho E`` seen along cosine-weighted rays is its irradiance
+2. **The estimate** (per set of lights and sky: 0.07-0.09 s on the showroom and a real
+   room, 0.36 s on the corridor's hundred lamps): the direct irradiance ``E_0`` of each
+   face (the lamps' shadowed light, the sun's, the sky's through the openings), then
+   bounce by bounce ``E_(n+1)(x) = mean over x's rays of rho_h E_n(h)`` (a Lambertian
+   face's exitance ``rho E`` seen along cosine-weighted rays is its irradiance
    contribution), ``E_ind = E_1 + E_2 + ...``; the ambient radiance scale the shaders take
    (``u_ambient``: ``albedo * u_ambient`` is the radiance a surface sends back) is the
    reflectance-weighted mean of ``E_ind / pi`` over the faces seen from the standing points:
@@ -79,7 +80,15 @@ from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff, range_window
 from app.sky_light import occluders
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
-SAMPLES = 2048  # surface points (the estimate moves by about 1 % between seeds)
+# Surface points: SAMPLES_PER_M2 of the scene's surface, within SAMPLES. At 2048 the estimate
+# moved by a few % between seeds and the picture's FLIP against Cycles by up to 0.006 (spawn
+# 0.214-0.220, window 0.225-0.232 over four seeds); 4096 gives 0.212-0.217 and 0.223-0.227,
+# the living room 0.203 -> 0.189, for 0.2 s more probing and twice the estimate's time
+# (docs/reference_flip.md, stop 31). A room (100 m2 of surface and more: the bathroom's 109,
+# the showroom's 271) gets all of them; a small object or a test cube (6 m2) half, its points
+# a few centimetres apart already, and it opens without a progress dialog (0.3 s).
+SAMPLES = (2048, 4096)
+SAMPLES_PER_M2 = 40.0
 GATHER_RAYS = 16  # cosine-weighted rays per face: its closure and what its bounce light sees
 VIEW_RAYS = 32  # rays in all directions from each standing point
 STANDING_POINTS = 64  # at most this many standing points (plus the spawn)
@@ -145,7 +154,7 @@ def estimate_ambient(
     scene: Scene,
     lights: Sequence[Light] | None = None,
     caster: RayCaster | None = None,
-    samples: int = SAMPLES,
+    samples: int | None = None,
     seed: int = SEED,
 ) -> AmbientEstimate:
     """The even indirect light of ``scene`` under ``lights`` (the scene's own by default).
@@ -168,7 +177,7 @@ class AmbientProbe:
         self,
         scene: Scene,
         caster: RayCaster | None = None,
-        samples: int = SAMPLES,
+        samples: int | None = None,
         seed: int = SEED,
     ) -> None:
         self.points = np.zeros((0, 3))
@@ -200,6 +209,8 @@ class AmbientProbe:
         rho = rho_rgb @ LUMA
         self.mean_albedo = float((rho * area).sum() / area.sum())
 
+        if samples is None:  # by the scene's surface (SAMPLES_PER_M2)
+            samples = int(np.clip(SAMPLES_PER_M2 * float(area.sum()), *SAMPLES))
         rng = np.random.default_rng(seed)
         pick = rng.choice(len(area), size=samples, p=area / area.sum())
         u, v = rng.random(samples), rng.random(samples)
@@ -705,7 +716,7 @@ def _glow_seen(glow: _Glow, origins: np.ndarray, dirs: np.ndarray, blocked: np.n
 
 def probe_for(scene: Scene, caster: RayCaster | None = None) -> AmbientProbe:
     """``scene``'s probe, found once and kept on it (``Scene.ambient_probe``): the window's
-    loader finds it on its worker thread (0.2 s for the showroom, 1.6 s for a 380k-triangle
+    loader finds it on its worker thread (0.5 s for the showroom, 1.8 s for a 380k-triangle
     room), the renderer then only reads it."""
     probe = scene.ambient_probe
     if not isinstance(probe, AmbientProbe):

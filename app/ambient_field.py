@@ -26,10 +26,10 @@ Faces that see nothing (a wall's outer side), faces covered by something lying o
 (most of their rays end within ``COVERED_M``: the floor under a rug, which no one sees and
 which receives nothing) and faces deep in creases (``app.ambient.FIELD_CREASE_MAX``) are
 left out. The cell is ``SPACINGS`` times the points' median
-nearest-neighbour distance (within ``CELL_M``: 0.56 m on the showroom), so each cell averages a
+nearest-neighbour distance (within ``CELL_M``: 0.39 m on the showroom), so each cell averages a
 few dozen faces' 16 rays (with 128 rays a face the field moved by a few %: what it shows is the
-light, not noise); 70-140 kB. Built with the estimate, each time the lights or the sun change
-(the showroom's estimate with it: 30-50 ms).
+light, not noise); 80-110 kB on the GPU. Built with the estimate, each time the lights or
+the sun change (the showroom's estimate with it: 70-90 ms).
 """
 
 from __future__ import annotations

@@ -227,3 +227,32 @@ def test_a_glowing_panel_lights_the_room_as_the_photon_tracer_finds():
     s = Settings()
     s.sky.enabled = True
     assert AmbientProbe(scene).estimate([], bake_sky(s).sh).ambient == 0.0  # a closed box
+
+
+def test_a_room_is_probed_at_more_points_than_a_small_object():
+    """The probe's points follow the scene's surface (app.ambient.SAMPLES_PER_M2): a 4 x 3 x 5
+    m room (94 m2) gets 3760 of them, a 1 m box half the room's most, and a large hall the
+    most; the same seed picks the same points."""
+    room = _box(0.5, [])
+    small = Scene(
+        "small",
+        [
+            _quad(
+                "top",
+                np.array([[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]], float),
+                np.array([0.0, 1.0, 0.0]),
+                0,
+            ),
+        ],
+        [Material("white", (0.8, 0.8, 0.8, 1.0))],
+    )
+    hall = _box(0.5, [])
+    for m in hall.meshes:
+        m.positions = m.positions * 3.0  # 9x the surface: 846 m2
+    counts = {
+        name: len(AmbientProbe(s).points)
+        for name, s in (("room", room), ("small", small), ("hall", hall))
+    }
+    assert counts == {"room": 3760, "small": 2048, "hall": 4096}
+    again = AmbientProbe(_box(0.5, []))
+    np.testing.assert_array_equal(again.points, AmbientProbe(room).points)

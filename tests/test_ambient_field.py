@@ -116,7 +116,7 @@ def test_a_lamp_by_one_wall_lights_that_end_of_the_room_more():
 
 
 def _centre(s: Settings, scene) -> tuple[float, np.ndarray]:
-    """The left eye's luminance at its centre pixel and the wall point it shows."""
+    """The left eye's luminance over its four centre pixels and the wall points they show."""
     with OffscreenHost(160, 90, s) as host:
         host.set_scene(scene)
         cam = StereoCamera(s.stereo)
@@ -126,13 +126,20 @@ def _centre(s: Settings, scene) -> tuple[float, np.ndarray]:
         hdr = host.read_hdr(0)[:, :, :3]
     h, w = hdr.shape[:2]
     lum = hdr[h // 2 - 1 : h // 2 + 1, w // 2 - 1 : w // 2 + 1] @ [0.2126, 0.7152, 0.0722]
-    eye = np.asarray(eyes[0].position, np.float64)
-    return float(lum.mean()), np.array([eye[0], eye[1], -HALF[2]])
+    eye = eyes[0]
+    points = []
+    for row in (h // 2 - 1, h // 2):  # row 0 at the top
+        for col in (w // 2 - 1, w // 2):
+            ndc = np.array([(col + 0.5) / w * 2 - 1, 1 - (row + 0.5) / h * 2])
+            a, b = (eye.inverse_view_projection @ np.array([*ndc, z, 1.0]) for z in (-1.0, 1.0))
+            a, b = a[:3] / a[3], b[:3] / b[3]
+            points.append(a + (b - a) * ((-HALF[2] - a[2]) / (b[2] - a[2])))  # on the wall
+    return float(lum.mean()), np.array(points)
 
 
 def test_the_frame_shades_with_the_field_as_its_cpu_twin_says():
     """The wall straight ahead: with the field, brighter than with the one level by what
-    reflects x (field there - level) says."""
+    reflects x (field there - level) says (at the four pixels averaged)."""
     scene = _box(0.5, [PointLight((0.5, 0.4, -0.3), (1.0, 1.0, 1.0), 8.0, 1e4)])
     scene.spawn = Viewpoint((0.0, 0.0, 1.5))
     s = Settings()
@@ -141,8 +148,8 @@ def test_the_frame_shades_with_the_field_as_its_cpu_twin_says():
     s.set("render.ambient_by_place", True)
     field_lum, at = _centre(s, scene)
     est = estimate_ambient(scene)
-    toward = np.array([[0.0, 0.0, 1.0]])
-    here = float(est.by_place.lookup(at[None, :], toward)[0])
+    toward = np.tile([0.0, 0.0, 1.0], (len(at), 1))
+    here = float(est.by_place.lookup(at, toward).mean())
     x, y = _env_brdf(scene.materials[0].roughness, 1.0)
     reflects = 0.5 + 0.04 * x + y
     want = reflects * (here - est.along((0.0, 0.0, 1.0)))
