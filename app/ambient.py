@@ -184,6 +184,7 @@ class AmbientProbe:
         self.emitted_rgb = np.zeros((0, 3))  # per face, the glowing surfaces' light (lux, RGB)
         self.mean_albedo = 0.0
         self._cell: float | None = None
+        self._gain_rgb: np.ndarray | None = None  # what each path keeps in colour (_chroma)
         self._record: list[tuple[np.ndarray, np.ndarray]] | None = None
         tris, owner, vnormal = _scene_geometry(scene)
         if tris.shape[0] == 0:
@@ -424,7 +425,7 @@ class AmbientProbe:
             )
             sun_hits = lit.reshape((*gain.shape, 3))
         arriving = e0[face] + sun_hits @ LUMA
-        first = (gain * arriving).sum(axis=1) / GATHER_RAYS
+        first = np.einsum("fr,fr->f", gain, arriving) / GATHER_RAYS
         chroma = self._chroma(hit, face, e0_rgb[face] + sun_hits)
         e0 = e0 + e0_suns
         total = first.copy()
@@ -433,7 +434,7 @@ class AmbientProbe:
         for _ in range(BOUNCES - 1):
             if kept <= 0.0:
                 break
-            nxt = (gain * e[face]).sum(axis=1) / GATHER_RAYS
+            nxt = np.einsum("fr,fr->f", gain, e[face]) / GATHER_RAYS  # no (2 n, rays) product
             before, e = float(e.sum()), nxt
             total += e
             kept = float(e.sum()) / before if before > 0.0 else 0.0
@@ -479,11 +480,13 @@ class AmbientProbe:
         ``CHROMA_BOUNCES`` bounces in colour from the light ``arriving`` along each ray
         (2 n, rays, 3: the lamps', the sun's and the sky's own colour), the surfaces'
         reflectance taking theirs (a wooden floor warms the ceiling, warm lamps the room)."""
-        gain = np.where(hit[..., None], self.rho_rgb[face // 2], 0.0)  # (2 n, rays, 3)
-        e = (gain * arriving).sum(axis=1) / GATHER_RAYS
+        if self._gain_rgb is None:  # the paths are the probe's: the same for every estimate
+            self._gain_rgb = np.where(hit[..., None], self.rho_rgb[face // 2], 0.0)
+        gain = self._gain_rgb  # (2 n, rays, 3)
+        e = np.einsum("frc,frc->fc", gain, arriving) / GATHER_RAYS
         total = e.copy()
         for _ in range(CHROMA_BOUNCES - 1):
-            e = (gain * e[face]).sum(axis=1) / GATHER_RAYS
+            e = np.einsum("frc,frc->fc", gain, e[face]) / GATHER_RAYS
             total += e
         lum = total @ LUMA
         grey = np.ones(3)
