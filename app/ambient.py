@@ -80,14 +80,14 @@ from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff, range_window
 from app.sky_light import occluders
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
-# Surface points: SAMPLES_PER_M2 of the scene's surface, within SAMPLES. At 2048 the estimate
+# Surface points: SAMPLES_PER_M2 of the scene's surface, within SAMPLE_RANGE. At 2048 the estimate
 # moved by a few % between seeds and the picture's FLIP against Cycles by up to 0.006 (spawn
 # 0.214-0.220, window 0.225-0.232 over four seeds); 4096 gives 0.212-0.217 and 0.223-0.227,
 # the living room 0.203 -> 0.189, for 0.2 s more probing and twice the estimate's time
 # (docs/reference_flip.md, stop 31). A room (100 m2 of surface and more: the bathroom's 109,
 # the showroom's 271) gets all of them; a small object or a test cube (6 m2) half, its points
 # a few centimetres apart already, and it opens without a progress dialog (0.3 s).
-SAMPLES = (2048, 4096)
+SAMPLE_RANGE = (2048, 4096)
 SAMPLES_PER_M2 = 40.0
 GATHER_RAYS = 16  # cosine-weighted rays per face: its closure and what its bounce light sees
 VIEW_RAYS = 32  # rays in all directions from each standing point
@@ -184,7 +184,13 @@ class AmbientProbe:
         self.emitted_rgb = np.zeros((0, 3))  # per face, the glowing surfaces' light (lux, RGB)
         self.mean_albedo = 0.0
         self._cell: float | None = None
-        self._gain_rgb: np.ndarray | None = None  # what each path keeps in colour (_chroma)
+        # Per face and ray, the probe's own (the same for every estimate): whether the ray met
+        # a face, the face standing for its hit (0 on a miss) and what a bounce keeps there,
+        # in luminance and in colour (set with the paths below).
+        self._hit = np.zeros((0, GATHER_RAYS), bool)
+        self._face = np.zeros((0, GATHER_RAYS), np.int64)
+        self._gain = np.zeros((0, GATHER_RAYS))
+        self._gain_rgb = np.zeros((0, GATHER_RAYS, 3))
         self._record: list[tuple[np.ndarray, np.ndarray]] | None = None
         tris, owner, vnormal = _scene_geometry(scene)
         if tris.shape[0] == 0:
@@ -211,7 +217,7 @@ class AmbientProbe:
         self.mean_albedo = float((rho * area).sum() / area.sum())
 
         if samples is None:  # by the scene's surface (SAMPLES_PER_M2)
-            samples = int(np.clip(SAMPLES_PER_M2 * float(area.sum()), *SAMPLES))
+            samples = int(np.clip(SAMPLES_PER_M2 * float(area.sum()), *SAMPLE_RANGE))
         rng = np.random.default_rng(seed)
         pick = rng.choice(len(area), size=samples, p=area / area.sum())
         u, v = rng.random(samples), rng.random(samples)
@@ -277,6 +283,9 @@ class AmbientProbe:
         self.closure = [c[0::2], c[1::2]]
         self.paths = _seen_side(self.paths, c)
         self.seen = _seen_side(self._seen_from_standing_points(scene, c, rng), c)
+        self._hit, self._face = self.paths >= 0, np.maximum(self.paths, 0)
+        self._gain = np.where(self._hit, self.rho[self._face // 2], 0.0)
+        self._gain_rgb = np.where(self._hit[..., None], self.rho_rgb[self._face // 2], 0.0)
 
     def _faces_met(
         self,
@@ -406,12 +415,10 @@ class AmbientProbe:
         seen = c.sum()
         if seen <= 0.0:  # nothing sees anything: an open sheet, no light comes back
             return AmbientEstimate(0.0, 0.0, 0.0, self.mean_albedo, 0.0)
-        hit = self.paths >= 0
-        face = np.maximum(self.paths, 0)
-        gain = np.where(hit, self.rho[face // 2], 0.0)  # what a bounce keeps on each path
+        hit, face, gain = self._hit, self._face, self._gain  # what a bounce keeps on each path
         # The first bounce: the lamps' and the sky's light where the rays hit, from the face
         # standing for each hit; the sun's exactly at the hit (a sharp patch on the floor).
-        sun_hits = np.zeros((*gain.shape, 3))
+        sun_hits: np.ndarray = np.zeros((*gain.shape, 3))
         if suns:
             at, facing = self.hit_at.reshape(-1, 3), self.hit_normal.reshape(-1, 3)
             met = hit.ravel()
@@ -426,7 +433,7 @@ class AmbientProbe:
             sun_hits = lit.reshape((*gain.shape, 3))
         arriving = e0[face] + sun_hits @ LUMA
         first = np.einsum("fr,fr->f", gain, arriving) / GATHER_RAYS
-        chroma = self._chroma(hit, face, e0_rgb[face] + sun_hits)
+        chroma = self._chroma(e0_rgb[face] + sun_hits)
         e0 = e0 + e0_suns
         total = first.copy()
         e = first
@@ -475,14 +482,12 @@ class AmbientProbe:
             self._by_place(total, c, indirect + (AXES - mean_n) @ np.asarray(gradient), chroma),
         )
 
-    def _chroma(self, hit: np.ndarray, face: np.ndarray, arriving: np.ndarray) -> np.ndarray:
+    def _chroma(self, arriving: np.ndarray) -> np.ndarray:
         """Each face's bounce light's colour (2 n, 3), its luminance 1: the first
         ``CHROMA_BOUNCES`` bounces in colour from the light ``arriving`` along each ray
         (2 n, rays, 3: the lamps', the sun's and the sky's own colour), the surfaces'
         reflectance taking theirs (a wooden floor warms the ceiling, warm lamps the room)."""
-        if self._gain_rgb is None:  # the paths are the probe's: the same for every estimate
-            self._gain_rgb = np.where(hit[..., None], self.rho_rgb[face // 2], 0.0)
-        gain = self._gain_rgb  # (2 n, rays, 3)
+        gain, face = self._gain_rgb, self._face  # (2 n, rays, 3), (2 n, rays)
         e = np.einsum("frc,frc->fc", gain, arriving) / GATHER_RAYS
         total = e.copy()
         for _ in range(CHROMA_BOUNCES - 1):

@@ -123,3 +123,18 @@ def test_without_a_display_the_walkthrough_runs_headless(tmp_path, monkeypatch, 
     shots = [tmp_path / "out" / s for s in summary["screenshots"]]
     assert len(shots) >= 5 and all(s.exists() for s in shots)
     assert np.asarray(Image.open(shots[0])).shape == (144, 256, 3)
+
+
+def test_render_with_automatic_exposure_shows_the_sunlit_room_metered(tmp_path):
+    """`render` draws one frame; with automatic exposure that frame is shown at the EV the
+    room meters (the first frame starts from the fixed EV, -1.3: a sunlit room came out
+    white). The same frame at the fixed EV stays white, which is what the meter is for."""
+    shots = {}
+    for mode in ("auto", "manual"):
+        out = tmp_path / f"{mode}.png"
+        args = ["render", "--scene", "showroom", "--out", str(out), "--size", "320x180"]
+        args += ["--set", "sky.enabled=true", "--set", f"render.exposure_mode={mode}"]
+        assert main(args) == 0
+        shots[mode] = np.asarray(Image.open(out)).astype(float)
+    assert shots["manual"].mean() > 240  # the sun at EV -1.3
+    assert 40 < shots["auto"].mean() < 200 and shots["auto"].std() > 20

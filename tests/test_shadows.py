@@ -21,6 +21,7 @@ from app.raycast import RayCaster
 from app.scene import Light, Material, Scene, Viewpoint
 from app.session import Session
 from app.settings import Settings
+from app.sky_light import occluders
 from assets.showroom import WINDOW_Z, MeshBuilder, build_showroom
 from render import shadow_mask
 from render.offscreen import OffscreenHost
@@ -528,13 +529,7 @@ def test_the_sun_does_not_leak_in_where_walls_meet(shadows, view, points):
     s.render.reflections = "off"  # the light here is the sun's alone
     scene, towards_sun = _sunlit_showroom()
     scene.spawn = view
-    casters = [
-        np.asarray(m.positions)[np.asarray(m.indices, np.int64)]
-        for m in scene.meshes
-        if not any(scene.materials[m.material].emissive)
-        and scene.materials[m.material].alpha_mode != "BLEND"
-    ]  # what casts a shadow (render.shadows.casts): not the glowing pane
-    tris = np.concatenate(casters)
+    tris = occluders(scene)  # what casts a shadow (render.shadows.casts): not the glowing pane
     caster = RayCaster(tris, np.zeros(len(tris), np.int64))
     pts = np.asarray(points, float)
     dist, _ = caster.cast_triangles(pts + towards_sun * 1e-4, np.tile(towards_sun, (len(pts), 1)))

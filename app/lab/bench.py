@@ -171,7 +171,10 @@ def render_frame(
     try:
         session.apply_path_frame(frame)
         host.set_text_image(None)
-        img = host.draw(session.frame_input(*host.eye_size))
+        fi = session.frame_input(*host.eye_size)
+        if settings.render.exposure_mode == "auto":  # a first frame meters the room: the
+            host.draw(fi)  # picture is shown at its EV from the second (a sunlit room was white)
+        img = host.draw(fi)
     finally:
         host.close()
     atomic_write_png(out, img)

@@ -342,10 +342,10 @@ def render(job_dir: Path) -> None:
     # bounces, which in a white room (walls of reflectance 0.8-0.9) leaves out a quarter of
     # the light bounced (0.8^4 of it); the renderer's even light sums 48 bounces. Cycles'
     # Russian roulette ends the paths that carry little long before FULL_BOUNCES.
+    # ``max_bounces`` 0: the direct light alone (transparent shadows still pass panes).
     bounces = job.get("max_bounces")
     if bounces is None:
         bounces = FULL_BOUNCES
-    # 0: direct light only (transparent shadows still pass panes)
     cy.max_bounces = int(bounces)
     cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = int(bounces)
     cy.volume_bounces = int(bounces)
