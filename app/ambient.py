@@ -71,8 +71,10 @@ from app.ambient_field import (
     COVERED_M,
     COVERED_SHARE,
     AmbientField,
+    FieldLayout,
     build_field,
     cell_size,
+    usable,
 )
 from app.photons import _mesh_optics, _scene_geometry, emitting_side
 from app.raycast import RayCaster
@@ -184,6 +186,7 @@ class AmbientProbe:
         self.emitted_rgb = np.zeros((0, 3))  # per face, the glowing surfaces' light (lux, RGB)
         self.mean_albedo = 0.0
         self._cell: float | None = None
+        self._layout: FieldLayout | None = None  # where the open faces fall on the field
         # Per face and ray, the probe's own (the same for every estimate): whether the ray met
         # a face, the face standing for its hit (0 on a miss) and what a bounce keeps there,
         # in luminance and in colour (set with the paths below).
@@ -508,16 +511,16 @@ class AmbientProbe:
         if not len(faces):
             return None
         facing = self.normal[faces // 2] * np.where(faces % 2 == 0, 1.0, -1.0)[:, None]
+        at = self.points[faces // 2]
         if self._cell is None:  # the same grid for every set of lights
             self._cell = cell_size(self.points)
+        if self._layout is None:  # the open faces do not change with the lights either
+            placed = usable(at, facing)
+            if placed.any():
+                self._layout = FieldLayout.of(at[placed], facing[placed], self._cell)
         level = np.maximum(levels, 0.0)  # AmbientEstimate.along the six axes
         return build_field(
-            self.points[faces // 2],
-            facing,
-            total[faces] / math.pi,
-            level,
-            self._cell,
-            chroma[faces],
+            at, facing, total[faces] / math.pi, level, self._cell, chroma[faces], self._layout
         )
 
 

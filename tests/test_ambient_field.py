@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from app.ambient import AmbientProbe, estimate_ambient
-from app.ambient_field import AXES, build_field
+from app.ambient_field import AXES, FieldLayout, build_field
 from app.camera import StereoCamera
 from app.frame import FrameInput
 from app.scene import Material, PointLight, Scene, Viewpoint
@@ -68,6 +68,30 @@ def test_bad_faces_are_left_out_and_none_gives_no_field():
     assert build_field(pts[:0], up[:0], values[:0], LEVELS) is None
     with pytest.raises(ValueError):
         build_field(pts, up, values, LEVELS, cell=0.0)
+
+
+def test_a_kept_layout_gives_the_field_a_fresh_build_gives_and_bad_light_lays_out_afresh():
+    """The probe keeps where its faces fall on the grid (they do not move with the lights): the
+    field from that layout equals one built from scratch; a face whose light turned NaN on
+    this estimate is left out as a fresh build leaves it out, not spread from the layout."""
+    pts, up = _floor_faces(12)
+    values = 0.3 + 0.1 * pts[:, 0]
+    layout = FieldLayout.of(pts, up, 0.25)
+    fresh = build_field(pts, up, values, LEVELS, cell=0.25)
+    kept = build_field(pts, up, values, LEVELS, cell=0.25, layout=layout)
+    assert fresh is not None and kept is not None
+    np.testing.assert_allclose(kept.values, fresh.values, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(kept.chroma, fresh.chroma, rtol=1e-6, atol=1e-7)
+    bad = values.copy()
+    bad[5] = np.nan
+    from_layout = build_field(pts, up, bad, LEVELS, cell=0.25, layout=layout)
+    assert from_layout is not None and from_layout.faces == len(pts) - 1
+    assert np.isfinite(from_layout.values).all()
+    left_out = build_field(
+        np.delete(pts, 5, 0), np.delete(up, 5, 0), np.delete(values, 5), LEVELS, cell=0.25
+    )
+    assert left_out is not None
+    np.testing.assert_allclose(from_layout.values, left_out.values, rtol=1e-6, atol=1e-7)
 
 
 def test_a_rug_covers_the_floor_under_it():
