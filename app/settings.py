@@ -243,8 +243,11 @@ class RenderSettings:
             "baked": "Once for the model",
         },
     )
+    # 0.3 m at 50 %: against Cycles (docs/reference_flip.md, stop 32) closer on five of the six
+    # views, where 0.75 m at 100 % was further on four: the even light by place already
+    # darkens a room's far corners, the occlusion only needs the contact shadows it cannot see.
     ao_radius_m: float = _opt(
-        0.75,
+        0.3,
         "How far away a surface still darkens its neighbour, when worked out from the "
         "picture; the shading worked out once for the model uses 0.75 m.",
         label="Corner shading reach",
@@ -255,7 +258,7 @@ class RenderSettings:
         step=0.05,
     )
     ao_strength: float = _opt(
-        1.0,
+        0.5,
         "How much the corners darken: 0% leaves the ambient light even, 100% darkens "
         "it fully by what is around.",
         label="Corner shading strength",

@@ -196,31 +196,47 @@ class CpsEyeTargets:
 
 
 class CpsState:
-    """The CPS targets of both eyes (and whether the level maps hold a frame's levels)."""
+    """The CPS targets of both eyes (and whether the level maps hold a frame's levels).
+
+    Made on first use (:attr:`eyes`), not when the eye targets change: a frame without
+    coarse shading makes none. At 640x720 they took 75 ms to make, and 6-8 ms at the
+    governor's render scales: each new scale's first frame paid it with CPS off."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
-        self.eyes: list[CpsEyeTargets] = []
+        self._eyes: list[CpsEyeTargets] = []
         self.level_maps_valid = False
-        self._for: list[EyeTargets] = []  # the eye targets the next made pair is for
+        self._for: list[EyeTargets] = []  # the eye targets the CPS targets are for
         # Kept for the eye targets' last sizes, as the renderer keeps those (BySize).
         self._by_size: BySize[list[CpsEyeTargets]] = BySize(
             lambda _size: [CpsEyeTargets(self.ctx, t) for t in self._for], release_all
         )
 
     def ensure(self, targets: list[EyeTargets]) -> None:
-        """Targets for these eye targets (those kept for them, or made anew)."""
-        if self._serves(self.eyes, targets):
+        """The CPS targets are to serve these eye targets (those kept for them, or made anew
+        when a pass first asks)."""
+        if self._serves(self._eyes, targets):
             return
         self._for = targets
-        eyes = self._by_size.get(targets[0].size)
-        if not self._serves(eyes, targets):  # the eye targets of that size were made anew
-            self._by_size.drop(targets[0].size)
-            eyes = self._by_size.get(targets[0].size)
-        for e in eyes:  # frames of another size came between: their history is not this
-            e.has_history = False
-        self.eyes = eyes
+        self._eyes = []
         self.level_maps_valid = False
+
+    @property
+    def eyes(self) -> list[CpsEyeTargets]:
+        """Each eye's CPS targets for the eye targets last ensured (made on first use)."""
+        if self._for and not self._serves(self._eyes, self._for):
+            eyes = self._by_size.get(self._for[0].size)
+            if not self._serves(eyes, self._for):  # the eye targets of that size were made anew
+                self._by_size.drop(self._for[0].size)
+                eyes = self._by_size.get(self._for[0].size)
+            for e in eyes:  # frames of another size came between: their history is not this
+                e.has_history = False
+            self._eyes = eyes
+        return self._eyes
+
+    def made(self) -> list[CpsEyeTargets]:
+        """The CPS targets made so far for the eye targets last ensured (none are made)."""
+        return self._eyes
 
     @staticmethod
     def _serves(eyes: list[CpsEyeTargets], targets: list[EyeTargets]) -> bool:
@@ -231,7 +247,7 @@ class CpsState:
         if not self.level_maps_valid:
             return []
         out = []
-        for e in self.eyes:
+        for e in self._eyes:
             w, h = e.levels.size
             half = np.frombuffer(e.levels.read(alignment=1), np.uint8).reshape(h, w)
             full = np.repeat(np.repeat(half, 2, axis=0), 2, axis=1)[: e.size[1], : e.size[0]]
@@ -240,7 +256,7 @@ class CpsState:
 
     def release(self) -> None:
         self._by_size.clear()
-        self.eyes = []
+        self._eyes = []
         self._for = []
 
 
@@ -477,5 +493,5 @@ class CpsTemporalPass(CpsPass):
 
     def reset(self) -> None:
         """Forget the history (scene change, mode change, a jump along the path)."""
-        for cps in self.state.eyes:
+        for cps in self.state.made():  # those not made yet have none
             cps.has_history = False

@@ -87,6 +87,8 @@ def draw(host: OffscreenHost, scene: Scene, **settings) -> list:
     for key in ("render.path", "render.lighting", "render.ao", "render.ao_strength", "cps.mode"):
         s.set(key, defaults.get(key))
     s.set("render.ao", "screen")  # these tests look at the occlusion unless told otherwise
+    s.set("render.ao_strength", 1.0)  # at full strength and the bake's reach
+    s.set("render.ao_radius_m", 0.75)
     # ... of the fixed ambient term (the estimate from the lamps is 0 in a room without any).
     s.set("render.ambient_estimate", False)
     for key, value in settings.items():
@@ -147,6 +149,20 @@ def test_a_corner_is_darker_than_the_open_floor_in_both_eyes(host, corner, metho
         open_floor = around(img, pixel(eyes[e], OPEN_FLOOR))
         assert open_floor == pytest.approx(flat, rel=0.05)
         assert in_corner < 0.8 * open_floor, (method, e, in_corner, open_floor)
+
+
+def test_the_shipped_reach_and_strength_shade_a_corner_more_gently(host, corner):
+    """At the defaults (0.3 m, 50 %: closer to Cycles on five of six views than 0.75 m at
+    100 %) the corner is still darker than the open floor, but less dark than at full."""
+    defaults = Settings().render
+    assert (defaults.ao_radius_m, defaults.ao_strength) == (0.3, 0.5)
+    eyes = draw(host, corner)
+    full = around(hdr(host, 0), pixel(eyes[0], CORNER))
+    draw(host, corner, render__ao_radius_m=0.3, render__ao_strength=0.5)
+    img = hdr(host, 0)
+    gentle = around(img, pixel(eyes[0], CORNER))
+    open_floor = around(img, pixel(eyes[0], OPEN_FLOOR))
+    assert full < gentle < 0.97 * open_floor, (full, gentle, open_floor)
 
 
 def test_ao_darkens_the_ambient_light_only_not_the_lamps(host, corner):
