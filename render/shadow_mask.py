@@ -68,21 +68,32 @@ class MaskFrame:
 
     textures: list[moderngl.Texture]  # per eye
     step: int  # samples every ``step`` pixels across and down
-    slots: int  # slots in use, 4 or 8
-    complete: bool  # every shadowed light has a slot (no per-pixel lookups left)
+    slots: int  # slots the scene's shadowed lights could fill, 4 or 8 (scene_slots)
+    # the scene has more shadowed lights than slots: those without one look up their maps
+    # per pixel (the SHADOW_MASK 2 variant, for every frame of such a scene)
+    overflow: bool
 
     def defines(self) -> dict[str, object]:
-        return {
-            "SHADOW_MASK": 1 if self.complete else 2,
-            "SHADOW_MASK_SLOTS_USED": self.slots,
-            "SHADOW_MASK_STEP": self.step,
-        }
+        """The lighting's variant: not the step (a uniform) nor the slots lit this frame,
+        which change as lamps come into view, but the slots the scene could fill and whether
+        its shadowed lights could overflow them: a new variant mid-walk is compiled in that
+        frame (110-200 ms in the corridor walk)."""
+        return {"SHADOW_MASK": 2 if self.overflow else 1, "SHADOW_MASK_SLOTS_USED": self.slots}
 
     def bind(
         self, prog: moderngl.Program | moderngl.ComputeShader, eye: EyeView, index: int
     ) -> None:
         bind_texture(prog, "shadow_mask", self.textures[index])
-        set_uniforms(prog, {"u_mask_depth": depth_terms(eye)})
+        set_uniforms(prog, {"u_mask_depth": depth_terms(eye), "u_mask_step": self.step})
+
+
+def scene_slots(lights) -> int:
+    """The mask's slots for a scene: 4 where it has at most 4 shadow-casting lights, else
+    ``SHADOW_MASK_SLOTS``. Fixed for the scene, not chosen by the lights in view each frame:
+    the lighting's variant must not change as one walks (8 slots cost the showroom's lighting
+    4 % more than 4, at 2x640x720, so a scene of few lamps keeps 4)."""
+    casters = sum(1 for light in lights if light.casts_shadows)
+    return 4 if casters <= 4 else SHADOW_MASK_SLOTS
 
 
 def depth_terms(eye: EyeView) -> tuple[float, float]:
@@ -128,11 +139,16 @@ class ShadowMaskPass(RenderPass):
         )
         self.lights = 0  # lights in the mask last frame
         self.min_lights = 1
+        self.slots = 4  # the slots the scene's shadowed lights could fill (scene_slots)
+        self.overflow = False  # the scene has more shadowed lights than SHADOW_MASK_SLOTS
 
     def configure(self, settings, scene, frame) -> bool:
         r = settings.render
         self.detail = r.shadow_detail
         self.min_lights = MIN_LIGHTS.get(r.shadows, 1)
+        self.slots = scene_slots(scene.light_list)
+        casters = sum(1 for light in scene.light_list if light.casts_shadows)
+        self.overflow = casters > SHADOW_MASK_SLOTS
         return (
             r.path == "deferred"
             and r.shadows != "off"
@@ -144,20 +160,20 @@ class ShadowMaskPass(RenderPass):
         self.targets = self._by_size.get(mask_size(eye_size, self.step))
 
     def execute(self, frame: FrameContext, res: Resources) -> None:
-        slots, shadowed = res.get("shadow_maps", ([], 0))
+        slots, _shadowed = res.get("shadow_maps", ([], 0))
         self.samples = 0
         self.lights = len(slots) if len(slots) >= self.min_lights else 0
         if not self.lights:
             return  # too few lights have a map this frame: the lighting looks them up itself
         self.step = mask_step(self.detail, len(slots))
         self._ensure(res.targets[0].size)
-        used = 4 if len(slots) <= 4 else SHADOW_MASK_SLOTS
+        used = self.slots
         lights = np.full(SHADOW_MASK_SLOTS, -1, np.int32)
         lights[: len(slots)] = slots
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "shadow_mask.frag.glsl",
-            {"SHADOW_MASK_SLOTS_USED": used, "SHADOW_MASK_STEP": self.step},
+            {"SHADOW_MASK_SLOTS_USED": used},
         )
         frame.scene.light_buffer.bind_to_uniform_block(0)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
@@ -172,6 +188,7 @@ class ShadowMaskPass(RenderPass):
                     "u_size": tgt.size,
                     "u_mask_lights": lights.tobytes(),
                     "u_mask_depth": depth_terms(eye),
+                    "u_mask_step": self.step,
                 },
             )
             self.fullscreen(prog)
@@ -182,7 +199,7 @@ class ShadowMaskPass(RenderPass):
                 [own.texture for own in self.targets],
                 self.step,
                 used,
-                complete=shadowed <= len(slots),
+                overflow=self.overflow,
             ),
         )
 

@@ -542,3 +542,28 @@ def test_the_sun_does_not_leak_in_where_walls_meet(shadows, view, points):
     assert sunlit.min() > 0.0
     ratio = np.array([at(img, fi, p) for p in pts]) / sunlit
     assert ratio.max() < 0.05, (ratio.max(), pts[ratio.argmax()])
+
+
+def test_turning_from_eight_shadowed_lamps_to_one_and_back_compiles_nothing(host):
+    """The lighting's variant follows the scene's shadowed lamps, not those in view: looking
+    away from seven of the eight lamps (one left, the mask every 2nd pixel instead of every
+    4th) and back drew with the programs already made. Before, each turn made new ones (the
+    first frame with them 110-170 ms in the corridor walk: a stall while walking)."""
+    scene = box_scene(mask_lights(8))
+    host.settings.set("render.shadows", "soft")
+    host.settings.set("render.shadow_detail", "auto")
+    host.set_scene(scene)
+    session = Session(host.settings.copy())
+    session.set_scene(scene)
+    seen = []
+    for yaw in (225.0, 45.0, 225.0):  # at the room's corner: towards the room, away, back
+        session.walker.place((-4.8, 0.5, -4.8), yaw, -10.0)
+        session.tick(0.0)
+        fi = session.frame_input(*host.eye_size)
+        before = len(host.renderer.shaders)
+        for _ in range(3):
+            host.draw(fi)
+        mask = host.renderer.shadow_mask
+        seen.append((mask.lights, mask.step, len(host.renderer.shaders) - before))
+    assert [s[:2] for s in seen] == [(8, 4), (1, 2), (8, 4)]
+    assert [s[2] for s in seen[1:]] == [0, 0]

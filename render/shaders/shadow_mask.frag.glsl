@@ -1,5 +1,5 @@
 #version 430
-// The shadow mask (render/shadow_mask.py): at every SHADOW_MASK_STEP-th pixel of each axis the
+// The shadow mask (render/shadow_mask.py): at every u_mask_step-th pixel of each axis the
 // shadow factor of up to 8 shadowed lights, 1 lit, 0 in shadow (slots 0-3 in x, 4-7 in y, 8 bits
 // each), the sample's view distance (z) and normal (w, 8 bits a component) for the lighting's
 // upsample. The G-buffer point of the sample pixel is lit by light u_mask_lights[k]
@@ -16,6 +16,7 @@ uniform ivec2 u_size;          // the eye's full resolution
 uniform ivec4 u_mask_lights[2];  // the light of each slot (-1: none)
 
 uniform vec2 u_mask_depth;     // view distance = y / (ndc_z + x)
+uniform int u_mask_step;       // a sample every this many pixels
 
 layout(location = 0) out uvec4 out_mask;
 
@@ -35,7 +36,7 @@ bool reaches(int i, vec3 P, vec3 N, out vec3 L, out float dist) {
 }
 
 void main() {
-    ivec2 p = min(ivec2(gl_FragCoord.xy) * SHADOW_MASK_STEP + SHADOW_MASK_STEP / 2, u_size - 1);
+    ivec2 p = min(ivec2(gl_FragCoord.xy) * u_mask_step + u_mask_step / 2, u_size - 1);
     float depth = texelFetch(u_gb_depth, p, 0).r;
     vec3 N = safe_normalize(texelFetch(u_gb_normal, p, 0).xyz, vec3(0.0, 1.0, 0.0));
     vec2 ndc = (vec2(p) + 0.5) / vec2(u_size) * 2.0 - 1.0;

@@ -1,5 +1,5 @@
 // The screen-space shadow mask in the lighting (render/shadow_mask.py). The mask pass leaves
-// each eye, at every SHADOW_MASK_STEP-th pixel of each axis, the shadow factor of up to 8
+// each eye, at every u_mask_step-th pixel of each axis, the shadow factor of up to 8
 // shadowed lights (slots 0-3 in x, 4-7 in y, 8 bits each), the sample's view distance (z, float
 // bits) and normal (w, 8 bits a component), in one RGBA32UI texel; the lighting reads the
 // pixel's factors once, before its light loop (use_shadow_mask_of: the four samples around the
@@ -12,6 +12,7 @@
 #ifdef SHADOW_MASK
 uniform usampler2D u_shadow_mask;
 uniform vec2 u_mask_depth;  // view distance = y / (ndc_z + x), from the eye's projection
+uniform int u_mask_step;  // a sample every this many pixels (a uniform: no variant per step)
 vec4 g_shadow_mask0 = vec4(1.0);
 vec4 g_shadow_mask1 = vec4(1.0);
 
@@ -23,7 +24,7 @@ float mask_distance(float depth) {
 void use_shadow_mask_of(ivec2 p, float depth, vec3 N) {
     float dist = mask_distance(depth);
     ivec2 last = textureSize(u_shadow_mask, 0) - 1;
-    vec2 c = (vec2(p) - float(SHADOW_MASK_STEP / 2)) / float(SHADOW_MASK_STEP);
+    vec2 c = (vec2(p) - float(u_mask_step / 2)) / float(max(u_mask_step, 1));
     ivec2 base = ivec2(floor(c));
     vec2 f = c - vec2(base);
     float tol = 0.02 * dist + 0.01;
