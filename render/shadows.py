@@ -250,12 +250,29 @@ def wanted_sizes(lights: list[Light], eyes: list[EyeView]) -> dict[int, int]:
 def fit_sizes(
     wanted: dict[int, tuple[int, int]], capacity: int, current: dict[int, int] | None = None
 ) -> dict[int, tuple[int, int]]:
-    """Halve the largest tiles until the lights' tiles fit ``capacity`` texels (size, faces);
-    among equals first those that would not keep their ``current`` size (no redraw for them)."""
+    """Halve the tiles of the light that takes the most texels until the lights' tiles fit
+    ``capacity`` texels (size, faces); among equals first those that would not keep their
+    ``current`` size (no redraw for them).
+
+    By the light's texels, not its tile's edge: a lamp inside its range wants six 1024 tiles
+    (6.3 M texels), the sun one 2048 tile (4.2 M) for the whole room. Halving the largest edge
+    first gave the daylit showroom's sun 1 cm texels (the lamps near the eye filled the atlas),
+    and hard shadows leaked sunlight in dots where a wall meets a skirting board (the sun
+    grazing the wall: a texel's error there is as deep as the few centimetres that shut the
+    corner); at 5 mm they are gone. Soft shadows still show them: their taps reach texels
+    where the sun's view slips between the wall and the skirting (docs/reference_flip.md)."""
     sizes = dict(wanted)
     now = current or {}
     while sum(s * s * n for s, n in sizes.values()) > capacity:
-        i = max(sizes, key=lambda k: (sizes[k][0], now.get(k) != sizes[k][0], k))
+        i = max(
+            sizes,
+            key=lambda k: (
+                sizes[k][0] ** 2 * sizes[k][1],
+                sizes[k][0],
+                now.get(k) != sizes[k][0],
+                k,
+            ),
+        )
         s, n = sizes[i]
         if s <= 64:
             break

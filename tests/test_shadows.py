@@ -567,3 +567,18 @@ def test_turning_from_eight_shadowed_lamps_to_one_and_back_compiles_nothing(host
         seen.append((mask.lights, mask.step, len(host.renderer.shaders) - before))
     assert [s[:2] for s in seen] == [(8, 4), (1, 2), (8, 4)]
     assert [s[2] for s in seen[1:]] == [0, 0]
+
+
+def test_the_sun_keeps_its_map_when_near_lamps_fill_the_atlas():
+    """Three lamps whose range holds the eye want six 1024 tiles each, the sun one 2048 tile:
+    together more than the atlas. The lamps' tiles are halved first (they take the most
+    texels), so the sun keeps its half-centimetre texels over the room; halving the largest
+    tile first gave it 1 cm ones, and dots of sunlight along the skirting boards."""
+    from render.constants import SHADOW_ATLAS
+    from render.shadows import MAX_FACE, SUN_TILE, fit_sizes
+
+    wanted = {0: (SUN_TILE, 1), 1: (MAX_FACE, 6), 2: (MAX_FACE, 6), 3: (MAX_FACE, 6)}
+    fitted = fit_sizes(wanted, SHADOW_ATLAS * SHADOW_ATLAS)
+    assert sum(s * s * n for s, n in fitted.values()) <= SHADOW_ATLAS * SHADOW_ATLAS
+    assert fitted[0] == (SUN_TILE, 1)
+    assert sorted(fitted[k][0] for k in (1, 2, 3)) == [MAX_FACE // 2, MAX_FACE // 2, MAX_FACE]
