@@ -259,9 +259,7 @@ def fit_sizes(
     first gave the daylit showroom's sun 1 cm texels (the lamps near the eye filled the atlas),
     and hard shadows leaked sunlight in dots where a wall meets a skirting board (the sun
     grazing the wall: a texel's error there is as deep as the few centimetres that shut the
-    corner); at 5 mm they are gone. Soft shadows still show them: their taps, spread over the
-    receiving surface, reach past the wall's face, where the world outside is sunlit
-    (docs/reference_flip.md)."""
+    corner; the shadow mask's part in those dots: shadow_mask.frag.glsl)."""
     sizes = dict(wanted)
     now = current or {}
     while sum(s * s * n for s, n in sizes.values()) > capacity:

@@ -582,3 +582,44 @@ def test_the_sun_keeps_its_map_when_near_lamps_fill_the_atlas():
     assert sum(s * s * n for s, n in fitted.values()) <= SHADOW_ATLAS * SHADOW_ATLAS
     assert fitted[0] == (SUN_TILE, 1)
     assert sorted(fitted[k][0] for k in (1, 2, 3)) == [MAX_FACE // 2, MAX_FACE // 2, MAX_FACE]
+
+
+@pytest.mark.parametrize("detail", ["half", "quarter"])
+def test_a_skirting_top_seen_across_the_room_stays_in_the_shade(detail):
+    """From the spawn, the north wall's skirting board's top is a pixel tall, and the mask has
+    no sample on it: it borrows those on the wall and the board's front, which face away from
+    the sun. Those kept a factor of 1 (the sun cannot reach them), so half the top's pixels
+    showed full sunlight in dots along the board, where a ray to the sun finds the wall."""
+    s = Settings()
+    s.render.overlay = False
+    s.render.ambient = 0.0
+    s.render.ambient_estimate = False
+    s.render.reflections = "off"  # the light here is the sun's alone
+    scene, towards_sun = _sunlit_showroom()
+    scene.spawn = Viewpoint((3.0, 1.6, 2.3), 20.0, -4.0)
+    with OffscreenHost(1280, 720, s) as host:
+        img, fi = hdr(host, scene, "soft", render__shadow_detail=detail)
+        off, _ = hdr(host, scene, "off")
+        assert not host.renderer.errors
+    eye = fi.eyes[0]
+    rows, cols = np.mgrid[300:500, 0 : eye.width]
+    ndc = np.stack(
+        [(cols + 0.5) / eye.width * 2 - 1, 1 - (rows + 0.5) / eye.height * 2], -1
+    ).reshape(-1, 2)
+    inv = eye.inverse_view_projection
+    near = np.c_[ndc, -np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
+    far = np.c_[ndc, np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
+    near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+    d = (far - near) / np.linalg.norm(far - near, axis=1)[:, None]
+    caster = RayCaster(scene.triangles())
+    t, _ = caster.cast_triangles(near, d)
+    hit = near + d * np.where(np.isfinite(t), t, 0.0)[:, None]
+    top = np.isfinite(t) & (np.abs(hit[:, 1] - 0.1) < 0.002) & (hit[:, 2] > -3.0)
+    top &= hit[:, 2] < -2.985  # the board's top: 10 cm up, 1.5 cm deep
+    to_sun = np.tile(towards_sun, (len(hit), 1))
+    shut, _ = caster.cast_triangles(hit + towards_sun * 1e-4, to_sun)
+    r, c = rows.ravel(), cols.ravel()
+    keep = top & np.isfinite(shut) & (off[r, c] > 0.0)
+    assert keep.sum() > 40  # the board's top, seen at dozens of pixels
+    ratio = img[r[keep], c[keep]] / off[r[keep], c[keep]]
+    assert ratio.max() < 0.05, (float(ratio.max()), float((ratio > 0.05).mean()))

@@ -43,15 +43,25 @@ void main() {
     vec4 world = u_inv_view_projection * vec4(ndc, depth * 2.0 - 1.0, 1.0);
     vec3 P = world.xyz / world.w;
     uint todo = 0u;
+    // Lights the sample's surface faces away from: it is in their shadow (0). Kept as 1 they
+    // lit the pixels that borrow this sample without one on their own surface: a skirting
+    // board's top between samples on the wall and on its front, both facing away from the
+    // sun, showed dots of full sunlight.
+    uint away = 0u;
     for (int k = 0; k < SHADOW_MASK_SLOTS_USED; ++k) {
         int i = u_mask_lights[k >> 2][k & 3];
         vec3 L;
         float dist;
-        if (i >= 0 && reaches(i, P, N, L, dist)) todo |= 1u << uint(k);
+        if (i < 0) continue;
+        if (reaches(i, P, N, L, dist)) {
+            todo |= 1u << uint(k);
+        } else if (dot(N, L) <= 0.0) {
+            away |= 1u << uint(k);
+        }
     }
-    if (depth >= 1.0) todo = 0u;  // the background: nothing to shadow
-    vec4 m0 = vec4(1.0);
-    vec4 m1 = vec4(1.0);
+    if (depth >= 1.0) todo = away = 0u;  // the background: nothing to shadow
+    vec4 m0 = vec4(1.0) - vec4((uvec4(away) >> uvec4(0u, 1u, 2u, 3u)) & 1u);
+    vec4 m1 = vec4(1.0) - vec4((uvec4(away) >> uvec4(4u, 5u, 6u, 7u)) & 1u);
     while (todo != 0u) {
         int k = findLSB(todo);
         todo &= todo - 1u;
