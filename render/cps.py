@@ -215,8 +215,8 @@ class CpsState:
     def ensure(self, targets: list[EyeTargets]) -> None:
         """The CPS targets are to serve these eye targets (those kept for them, or made anew
         when a pass first asks)."""
-        if self._serves(self._eyes, targets):
-            return
+        if len(self._for) == len(targets) and all(a is b for a, b in zip(self._for, targets)):
+            return  # the same eye targets: what is made for them (or not yet) stands
         self._for = targets
         self._eyes = []
         self.level_maps_valid = False

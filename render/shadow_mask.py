@@ -87,12 +87,11 @@ class MaskFrame:
         set_uniforms(prog, {"u_mask_depth": depth_terms(eye), "u_mask_step": self.step})
 
 
-def scene_slots(lights) -> int:
-    """The mask's slots for a scene: 4 where it has at most 4 shadow-casting lights, else
-    ``SHADOW_MASK_SLOTS``. Fixed for the scene, not chosen by the lights in view each frame:
-    the lighting's variant must not change as one walks (8 slots cost the showroom's lighting
-    4 % more than 4, at 2x640x720, so a scene of few lamps keeps 4)."""
-    casters = sum(1 for light in lights if light.casts_shadows)
+def scene_slots(casters: int) -> int:
+    """The mask's slots for a scene of ``casters`` shadow-casting lights: 4 where it has at
+    most 4, else ``SHADOW_MASK_SLOTS``. Fixed for the scene, not chosen by the lights in view
+    each frame: the lighting's variant must not change as one walks (8 slots cost the
+    showroom's lighting 4 % more than 4, at 2x640x720, so a scene of few lamps keeps 4)."""
     return 4 if casters <= 4 else SHADOW_MASK_SLOTS
 
 
@@ -146,14 +145,14 @@ class ShadowMaskPass(RenderPass):
         r = settings.render
         self.detail = r.shadow_detail
         self.min_lights = MIN_LIGHTS.get(r.shadows, 1)
-        self.slots = scene_slots(scene.light_list)
         casters = sum(1 for light in scene.light_list if light.casts_shadows)
+        self.slots = scene_slots(casters)
         self.overflow = casters > SHADOW_MASK_SLOTS
         return (
             r.path == "deferred"
             and r.shadows != "off"
             and mask_step(self.detail, SHADOW_MASK_SLOTS) > 0
-            and any(light.casts_shadows for light in scene.light_list)
+            and casters > 0
         )
 
     def _ensure(self, eye_size: tuple[int, int]) -> None:
@@ -167,13 +166,12 @@ class ShadowMaskPass(RenderPass):
             return  # too few lights have a map this frame: the lighting looks them up itself
         self.step = mask_step(self.detail, len(slots))
         self._ensure(res.targets[0].size)
-        used = self.slots
         lights = np.full(SHADOW_MASK_SLOTS, -1, np.int32)
         lights[: len(slots)] = slots
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "shadow_mask.frag.glsl",
-            {"SHADOW_MASK_SLOTS_USED": used},
+            {"SHADOW_MASK_SLOTS_USED": self.slots},
         )
         frame.scene.light_buffer.bind_to_uniform_block(0)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
@@ -198,7 +196,7 @@ class ShadowMaskPass(RenderPass):
             MaskFrame(
                 [own.texture for own in self.targets],
                 self.step,
-                used,
+                self.slots,
                 overflow=self.overflow,
             ),
         )

@@ -263,8 +263,11 @@ def fit_sizes(
     sizes = dict(wanted)
     now = current or {}
     while sum(s * s * n for s, n in sizes.values()) > capacity:
+        halvable = [k for k, (s, _n) in sizes.items() if s > 64]
+        if not halvable:
+            break
         i = max(
-            sizes,
+            halvable,
             key=lambda k: (
                 sizes[k][0] ** 2 * sizes[k][1],
                 sizes[k][0],
@@ -273,8 +276,6 @@ def fit_sizes(
             ),
         )
         s, n = sizes[i]
-        if s <= 64:
-            break
         sizes[i] = (s // 2, n)
     return sizes
 

@@ -489,6 +489,17 @@ def test_the_photon_tracer_emits_a_spot_within_its_cone_only():
     assert pm.power.sum(axis=0, dtype=np.float64) == pytest.approx([expected] * 3, rel=0.05)
 
 
+def _sun_alone() -> Settings:
+    """Settings under which a pixel's light is the sun's alone (no ambient term, no bounce
+    estimate, no reflections, no overlay)."""
+    s = Settings()
+    s.render.overlay = False
+    s.render.ambient = 0.0
+    s.render.ambient_estimate = False
+    s.render.reflections = "off"
+    return s
+
+
 def _sunlit_showroom() -> tuple[Scene, np.ndarray]:
     """The showroom with the default 10:00 sun (as the blinds test) and the way to the sun."""
     scene = build_showroom(0)
@@ -522,11 +533,7 @@ def test_the_sun_does_not_leak_in_where_walls_meet(shadows, view, points):
     """Points a ray cast towards the sun finds shut in (the room's walls, ceiling and skirting
     boards are in its way) stay dark a few millimetres from the corner: the sun's map once put
     dotted lines of sunlight along the skirting boards and under the ceiling."""
-    s = Settings()
-    s.render.overlay = False
-    s.render.ambient = 0.0
-    s.render.ambient_estimate = False
-    s.render.reflections = "off"  # the light here is the sun's alone
+    s = _sun_alone()
     scene, towards_sun = _sunlit_showroom()
     scene.spawn = view
     tris = occluders(scene)  # what casts a shadow (render.shadows.casts): not the glowing pane
@@ -590,11 +597,7 @@ def test_a_skirting_top_seen_across_the_room_stays_in_the_shade(detail):
     no sample on it: it borrows those on the wall and the board's front, which face away from
     the sun. Those kept a factor of 1 (the sun cannot reach them), so half the top's pixels
     showed full sunlight in dots along the board, where a ray to the sun finds the wall."""
-    s = Settings()
-    s.render.overlay = False
-    s.render.ambient = 0.0
-    s.render.ambient_estimate = False
-    s.render.reflections = "off"  # the light here is the sun's alone
+    s = _sun_alone()
     scene, towards_sun = _sunlit_showroom()
     scene.spawn = Viewpoint((3.0, 1.6, 2.3), 20.0, -4.0)
     with OffscreenHost(1280, 720, s) as host:
