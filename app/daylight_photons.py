@@ -227,6 +227,46 @@ class Portal:
     def total_area(self) -> float:
         return float(self.area[self.open].sum())
 
+    def cell_index(self, p: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """The cell of each point ``p`` on the box (on faces ``face``, as ``_box_exit`` gives
+        them), (N,) int."""
+        out = np.zeros(len(p), np.int64)
+        at = 0
+        lo, hi = self.lo, self.hi
+        for k, side, a, b, na, nb in _face_grids(lo, hi):
+            on = face == 2 * k + (side > 0)
+            if on.any():
+                ia = ((p[on, a] - lo[a]) / (hi[a] - lo[a]) * na).astype(np.int64)
+                ib = ((p[on, b] - lo[b]) / (hi[b] - lo[b]) * nb).astype(np.int64)
+                out[on] = at + np.clip(ia, 0, na - 1) * nb + np.clip(ib, 0, nb - 1)
+            at += na * nb
+        return out
+
+    def sample_open(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``n`` points uniform over the open cells' area, (n, 3); none when none is open."""
+        cells = np.flatnonzero(self.open)
+        if len(cells) == 0:
+            return np.zeros((0, 3))
+        cdf = np.cumsum(self.area[cells])
+        at = np.searchsorted(cdf, rng.random(n) * cdf[-1], "right")
+        pick = cells[np.minimum(at, len(cells) - 1)]
+        u, v = (rng.random((n, 1)) * 2.0 - 1.0 for _ in range(2))
+        return self.centre[pick] + u * self.half_u[pick] + v * self.half_v[pick]
+
+    def open_density(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """The solid-angle density, at each origin ``o`` (inside the box) and unit direction
+        ``d``, of aiming at a point uniform over the open cells (:meth:`sample_open`): where the
+        ray leaves the box through an open cell, ``t^2 / (area cos)``; else 0. (N,)"""
+        if len(o) == 0:
+            return np.zeros(0)
+        t, face = _box_exit(o, d, self.lo, self.hi)
+        cell = self.cell_index(o + d * t[:, None], face)
+        cos = np.abs(d[np.arange(len(d)), face // 2])
+        area = self.total_area
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pdf = t * t / (area * cos)
+        return np.where(self.open[cell] & (cos > 1e-9) & np.isfinite(pdf), pdf, 0.0)
+
     def beam_cells(self, caster: RayCaster, towards: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The cells a beam from ``towards`` enters the room through and how many rays from the
         room's surfaces towards the source left through each (their neighbours: 0)."""

@@ -6,6 +6,24 @@ hitting anything is the vertex's sky visibility (1 on an open lawn, near 0 in a 
 in between near a window). A cosine-weighted share is what the diffuse light needs: the sky
 light reaching the surface is that share times the unoccluded sky irradiance.
 
+**Aimed at the windows.** Seen from inside, the sky is a small part of the hemisphere: through
+a window with blinds the showroom's ceiling sees 0.04 % of it, so of 48 cosine rays most vertices
+send none out and one in twenty sends one (2 %, fifty times the true share): blotches of sky light
+that the interpolation draws as polygons. Half of each side's rays are therefore aimed at the
+room's openings, the sky's portal that the daylight photons use (``app.daylight_photons
+.find_portal``: cells of the bounding box that rays from inside leave through), and the two sets
+are combined by multiple importance sampling (Veach and Guibas 1995, the balance heuristic): an
+escaping ray of either set counts ``cos / (n_c cos + n_p pi p_portal)``, with ``p_portal`` the
+solid-angle density of a uniform point on the portal's cells in that direction (0 through a cell
+that is not in it). A window that the portal missed (a room the spawn does not see) is still
+found by the cosine rays, as before.
+
+**Covered vertices.** A vertex behind a painting, under a cabinet pushed against the wall, or
+inside a light fixture sees no sky, and nobody sees it; interpolated towards its visible
+neighbours it would draw the painting's shadow as a polygon half a metre wide around it. A side
+whose rays mostly end within ``COVER_M`` (``COVERED_SHARE``) takes its uncovered neighbours'
+mean instead.
+
 The work is capped (``max_rays``): a big interior samples a subset of its vertices, the others
 take the value of the nearest sampled vertex facing the same way. The bake runs once per
 scene, on a background thread (:class:`VisibilityBake`), and the renderer uploads the result
@@ -23,6 +41,8 @@ import numpy as np
 from scipy.sparse import coo_matrix, identity
 from scipy.spatial import cKDTree
 
+from app.ao_bake import sample_points
+from app.daylight_photons import Portal, find_portal, scene_box
 from app.raycast import RayCaster
 from app.scene import Scene
 
@@ -33,6 +53,16 @@ MAX_RAYS = 2_000_000  # about 3 to 10 s of embree on one core
 CHUNK_RAYS = 16384  # rays per embree call: short holds of the interpreter lock
 OFFSET_M = 2e-3  # rays start this far off the surface (no self-hits)
 NORMAL_WEIGHT_M = 0.25  # nearest-vertex match: a flipped normal counts as 0.5 m away
+NEAREST_K, FACING_DEG = 16, 45.0  # ... and of the 16 nearest, the first facing the same way
+#: A vertex's rays start this far (at most) towards the centre of its triangles.
+INSET_M = 0.02
+#: The share of a side's rays aimed at the sky's portal, when the room has one.
+PORTAL_SHARE = 0.5
+#: A side is covered (behind a painting, under a cabinet) when this share of its cosine rays
+#: ends within COVER_M of it; it takes its neighbours' value (FILL_ROUNDS rings at most).
+COVER_M = 0.08
+COVERED_SHARE = 0.8
+FILL_ROUNDS = 6
 
 
 def cosine_directions(normals: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -63,14 +93,9 @@ def smooth(values: np.ndarray, indices: np.ndarray, rounds: int = SMOOTH_ROUNDS)
     """Average each vertex with its mesh neighbours ``rounds`` times: the rays' remaining noise
     goes, the fall-off from a window (metres wide) stays."""
     n = values.shape[0]
-    tri = np.asarray(indices, np.int64).reshape(-1, 3)
-    if n == 0 or tri.size == 0:
+    if n == 0 or np.asarray(indices).size == 0:
         return values
-    rows = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2], tri[:, 1], tri[:, 2], tri[:, 0]])
-    cols = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0], tri[:, 0], tri[:, 1], tri[:, 2]])
-    adj = coo_matrix((np.ones(rows.shape[0]), (rows, cols)), shape=(n, n)).tocsr()
-    adj.data[:] = 1.0
-    adj = adj + identity(n, format="csr")
+    adj = _adjacency(indices, n) + identity(n, format="csr")
     weight = np.asarray(adj.sum(axis=1)).ravel()
     out = values.astype(np.float64)
     for _ in range(rounds):
@@ -104,11 +129,12 @@ def sky_visibility(
     """Per mesh, an (N, 2) float32 array: the share of the sky each vertex sees on the side
     its normal points to and on the other side. None when ``cancelled()`` turned true."""
     rng = np.random.default_rng(seed)
-    if caster is None:  # its own: embree builds a shared one lazily, not safely from two threads
-        caster = RayCaster(occluders(scene))
     if not scene.meshes:
         return []
-    pos = np.concatenate([m.positions for m in scene.meshes]).astype(np.float64)
+    tri = occluders(scene)
+    if caster is None:  # its own: embree builds a shared one lazily, not safely from two threads
+        caster = RayCaster(tri)
+    pos = np.concatenate([_inside_points(m.positions, m.indices) for m in scene.meshes])
     nrm = np.concatenate([m.normals for m in scene.meshes]).astype(np.float64)
     length = np.linalg.norm(nrm, axis=1, keepdims=True)
     nrm = np.where(length > 1e-9, nrm / np.maximum(length, 1e-9), [0.0, 1.0, 0.0])
@@ -117,34 +143,231 @@ def sky_visibility(
     side_pos = np.concatenate([pos + nrm * OFFSET_M, pos - nrm * OFFSET_M])
     side_nrm = np.concatenate([nrm, -nrm])
     wanted = side_pos.shape[0]
-    budget = max(1, max_rays // max(1, rays))
-    sampled = np.arange(wanted) if wanted <= budget else np.sort(rng.choice(wanted, budget, False))
+    portal = _portal(scene, caster, tri, seed) if rays >= 2 else None
+    n_portal = int(round(rays * PORTAL_SHARE)) if portal is not None else 0
+    n_cos = max(1, rays - n_portal)
+    per_side = n_cos + n_portal
+    budget = max(1, max_rays // per_side)
+    if wanted <= budget:
+        sampled = np.arange(wanted)
+    else:
+        area = np.concatenate([vertex_areas(m.positions, m.indices) for m in scene.meshes])
+        sampled = _by_area(np.concatenate([area, area]), budget, rng)
     seen = np.zeros(sampled.shape[0], np.float32)
-    per_chunk = max(1, CHUNK_RAYS // rays)
+    covered = np.zeros(sampled.shape[0], bool)
+    per_chunk = max(1, CHUNK_RAYS // per_side)
     for start in range(0, sampled.shape[0], per_chunk):
         if cancelled is not None and cancelled():
             return None
         rows = sampled[start : start + per_chunk]
-        dirs = cosine_directions(side_nrm[rows], rays, rng)
-        origins = np.repeat(side_pos[rows], rays, axis=0)
-        dist, _ = caster.cast_triangles(origins, dirs.reshape(-1, 3))
-        seen[start : start + rows.shape[0]] = (
-            np.isinf(dist).reshape(rows.shape[0], rays).mean(axis=1)
+        share, shut_in = _seen_share(
+            caster, side_pos[rows], side_nrm[rows], n_cos, n_portal, portal, rng
         )
+        seen[start : start + len(rows)] = share
+        covered[start : start + len(rows)] = shut_in
     values = np.empty(wanted, np.float32)
-    values[sampled] = seen
+    values[sampled] = np.clip(seen, 0.0, 1.0)
+    cover = np.zeros(wanted, bool)
+    cover[sampled] = covered
     if sampled.shape[0] < wanted:
         rest = np.setdiff1d(np.arange(wanted), sampled, assume_unique=True)
-        tree = cKDTree(np.hstack([side_pos[sampled], side_nrm[sampled] * NORMAL_WEIGHT_M]))
-        _, nearest = tree.query(np.hstack([side_pos[rest], side_nrm[rest] * NORMAL_WEIGHT_M]))
-        values[rest] = seen[nearest]
+        nearest = _nearest_facing(side_pos, side_nrm, sampled, rest)
+        values[rest] = values[sampled][nearest]
+        cover[rest] = covered[nearest]
     both = np.stack([values[:total], values[total:]], axis=1)
-    out, offset = [], 0
+    shut = np.stack([cover[:total], cover[total:]], axis=1)
+    out_meshes, offset = [], 0
     for m in scene.meshes:
         n = m.positions.shape[0]
-        out.append(np.ascontiguousarray(smooth(both[offset : offset + n], m.indices)))
+        part = slice(offset, offset + n)
+        # Flat-shaded models repeat a vertex per triangle: welded, the triangles share it.
+        first, inverse, welded = welded_indices(m.positions, m.normals, m.indices)
+        count = np.bincount(inverse, minlength=len(first)).astype(np.float64)[:, None]
+        mean = np.stack([np.bincount(inverse, both[part][:, k], len(first)) for k in range(2)], 1)
+        shut_mean = np.stack(
+            [np.bincount(inverse, shut[part][:, k], len(first)) for k in range(2)], 1
+        )
+        filled = fill_covered(mean / count, shut_mean / count >= 0.5, welded)
+        out_meshes.append(np.ascontiguousarray(smooth(filled, welded)[inverse]))
         offset += n
+    return out_meshes
+
+
+def vertex_areas(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Each vertex's share of the surface: a third of its triangles' areas, (N,)."""
+    pos = np.asarray(positions, np.float64).reshape(-1, 3)
+    tri = np.asarray(indices, np.int64).reshape(-1, 3)
+    out = np.zeros(pos.shape[0])
+    if tri.size == 0:
+        return out
+    area = 0.5 * np.linalg.norm(
+        np.cross(pos[tri[:, 1]] - pos[tri[:, 0]], pos[tri[:, 2]] - pos[tri[:, 0]]), axis=1
+    )
+    area = np.where(np.isfinite(area), area, 0.0)
+    for k in range(3):
+        np.add.at(out, tri[:, k], area / 3.0)
     return out
+
+
+def _by_area(area: np.ndarray, budget: int, rng: np.random.Generator) -> np.ndarray:
+    """About ``budget`` of the sides, each kept with a chance in proportion to its surface
+    (at most 1): the walls, floor and ceiling a viewer sees, drawn by few large triangles,
+    are all kept; a tap's thousand tiny vertices share a few samples and take the nearest's
+    value. Random sides, a twentieth of a real room's, left a wall's few vertices to the
+    nearest sample a metre away: blotches of one value each."""
+    a = np.maximum(area, 0.0)
+    lo, hi = 0.0, 1.0
+    total = float(a.sum())
+    if total <= 0.0:
+        return np.sort(rng.choice(len(a), budget, False))
+    hi = budget / total
+    while np.minimum(1.0, a * hi).sum() < budget:  # grow the scale until the budget is met
+        hi *= 2.0
+    for _ in range(40):  # then halve the interval: sum(min(1, c a)) = budget
+        mid = 0.5 * (lo + hi)
+        if np.minimum(1.0, a * mid).sum() < budget:
+            lo = mid
+        else:
+            hi = mid
+    keep = rng.random(len(a)) < np.minimum(1.0, a * hi)
+    return np.flatnonzero(keep)
+
+
+def welded_indices(
+    positions: np.ndarray, normals: np.ndarray, indices: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One vertex for each place and way of facing (1 mm, about 3 degrees): the first vertex
+    of each (W,), each vertex's welded one (N,), and the triangles' indices into them."""
+    pos = np.asarray(positions, np.float64).reshape(-1, 3)
+    key = np.hstack(
+        [np.round(pos / 1e-3), np.round(np.asarray(normals, np.float64).reshape(-1, 3) * 20.0)]
+    )
+    key = np.where(np.isfinite(key), key, 0.0).astype(np.int64)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    return first, inverse, inverse[np.asarray(indices, np.int64).reshape(-1)]
+
+
+def _nearest_facing(
+    pos: np.ndarray, nrm: np.ndarray, sampled: np.ndarray, rest: np.ndarray
+) -> np.ndarray:
+    """For each side in ``rest``, the index into ``sampled`` of the nearest sampled side that
+    faces the same way (normals within ``FACING_DEG``; else the nearest of the
+    ``NEAREST_K`` that faces it most). The other side of the same wall is 4 mm away and sees
+    the whole sky: weighed by distance and normal together it was taken where a big ceiling's
+    samples were sparse, a vertex of the ceiling saw the whole sky and its triangles lit
+    up."""
+    tree = cKDTree(np.hstack([pos[sampled], nrm[sampled] * NORMAL_WEIGHT_M]))
+    query = np.hstack([pos[rest], nrm[rest] * NORMAL_WEIGHT_M])
+    _, out = tree.query(query)
+    least = math.cos(math.radians(FACING_DEG))
+    odd = np.flatnonzero(np.einsum("rj,rj->r", nrm[rest], nrm[sampled][out]) < least)
+    k = min(NEAREST_K, len(sampled))
+    if len(odd) and k > 1:  # the few whose nearest faces away: look further
+        _, near = tree.query(query[odd], k=k)
+        facing = np.einsum("rj,rkj->rk", nrm[rest][odd], nrm[sampled][near])
+        good = facing >= least
+        first = np.where(good.any(axis=1), good.argmax(axis=1), facing.argmax(axis=1))
+        out[odd] = near[np.arange(len(odd)), first]
+    return out
+
+
+def _inside_points(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Each vertex moved towards the centre of its triangles (as the AO bake's
+    ``sample_points``), by at most ``INSET_M``: a ceiling's corner vertex lies on the wall's
+    plane, and from there half its rays slip through the wall (embree ignores a hit at
+    distance 0): the corner saw half the sky, and its triangle, two metres long, drew a white
+    wedge across the ceiling."""
+    pos = np.asarray(positions, np.float64).reshape(-1, 3)
+    move = sample_points(pos, indices) - pos
+    length = np.linalg.norm(move, axis=1, keepdims=True)
+    scale = np.minimum(1.0, INSET_M / np.maximum(length, 1e-12))
+    return pos + move * scale
+
+
+def _seen_share(
+    caster: RayCaster,
+    o: np.ndarray,
+    n: np.ndarray,
+    n_cos: int,
+    n_portal: int,
+    portal: Portal | None,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The share of the sky seen from points ``o`` facing ``n`` (k,), by ``n_cos`` cosine
+    rays and ``n_portal`` rays aimed at the portal, weighed by the balance heuristic; and
+    whether each point is covered (its cosine rays end within COVER_M), (k,) bool."""
+    k = o.shape[0]
+    dirs = cosine_directions(n, n_cos, rng)
+    if portal is not None and n_portal:
+        aim = portal.sample_open(rng, k * n_portal).reshape(k, n_portal, 3) - o[:, None, :]
+        aim /= np.maximum(np.linalg.norm(aim, axis=2, keepdims=True), 1e-12)
+        dirs = np.concatenate([dirs, aim], axis=1)
+    per_side = dirs.shape[1]
+    origins = np.repeat(o, per_side, axis=0)
+    flat = dirs.reshape(-1, 3)
+    dist, _ = caster.cast_triangles(origins, flat)
+    dist = dist.reshape(k, per_side)
+    covered = (dist[:, :n_cos] < COVER_M).mean(axis=1) >= COVERED_SHARE
+    cos = np.einsum("kj,kij->ki", n, dirs)
+    out = np.isinf(dist) & (cos > 0.0)
+    if portal is None or not n_portal:
+        return out.mean(axis=1), covered
+    inside = np.all((o > portal.lo) & (o < portal.hi), axis=1)
+    out[~inside, n_cos:] = False  # outside the box: the cosine rays alone
+    pdf = np.zeros((k, per_side))
+    esc = out & inside[:, None]
+    pdf[esc] = portal.open_density(origins[esc.ravel()], flat[esc.ravel()])
+    n_p = np.where(inside, n_portal, 0)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = cos / (n_cos * cos + n_p * math.pi * pdf)
+    return np.where(out, share, 0.0).sum(axis=1), covered
+
+
+def _portal(scene: Scene, caster: RayCaster, tri: np.ndarray, seed: int) -> Portal | None:
+    """The sky's portal seen from the spawn, or None (a closed room, the spawn outside the
+    model, no geometry)."""
+    box = scene_box(tri)
+    if box is None:
+        return None
+    portal = find_portal(caster, box, np.asarray(scene.spawn.position, np.float64), seed)
+    if not portal.inside or not portal.open.any() or portal.total_area <= 0.0:
+        return None
+    return portal
+
+
+def _adjacency(indices: np.ndarray, n: int):
+    tri = np.asarray(indices, np.int64).reshape(-1, 3)
+    rows = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2], tri[:, 1], tri[:, 2], tri[:, 0]])
+    cols = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0], tri[:, 0], tri[:, 1], tri[:, 2]])
+    adj = coo_matrix((np.ones(rows.shape[0]), (rows, cols)), shape=(n, n)).tocsr()
+    adj.data[:] = 1.0
+    return adj
+
+
+def fill_covered(
+    values: np.ndarray, covered: np.ndarray, indices: np.ndarray, rounds: int = FILL_ROUNDS
+) -> np.ndarray:
+    """``values`` (N, S) with each covered entry (``covered``, (N, S) bool) replaced by the
+    mean of its uncovered mesh neighbours, ring by ring (``rounds`` rings at most; one with
+    none within keeps its own)."""
+    out = values.astype(np.float64)
+    known = ~np.asarray(covered, bool)
+    n = out.shape[0]
+    if n == 0 or known.all() or np.asarray(indices).size == 0:
+        return values
+    adj = _adjacency(indices, n)
+    for _ in range(rounds):
+        if known.all():
+            break
+        w = known.astype(np.float64)
+        total, count = adj @ (out * w), adj @ w
+        take = ~known & (count > 0)
+        if not take.any():
+            break
+        out[take] = total[take] / count[take]
+        known = known | take
+    return out.astype(values.dtype)
 
 
 class VisibilityBake:
