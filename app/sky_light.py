@@ -18,15 +18,19 @@ solid-angle density of a uniform point on the portal's cells in that direction (
 that is not in it). A window that the portal missed (a room the spawn does not see) is still
 found by the cosine rays, as before.
 
-**Covered vertices.** A vertex behind a painting, under a cabinet pushed against the wall, or
-inside a light fixture sees no sky, and nobody sees it; interpolated towards its visible
-neighbours it would draw the painting's shadow as a polygon half a metre wide around it. A side
-whose rays mostly end within ``COVER_M`` (``COVERED_SHARE``) takes its uncovered neighbours'
-mean instead.
+**Spread in space.** Each side's value is the Gaussian-weighted mean of the samples near it that
+face its way (``_spread``): the rays' noise goes, the fall-off from a window (tens of centimetres
+and more) stays, and it does not depend on how the surface was cut into triangles. A vertex
+behind a painting, under a cabinet pushed against the wall or inside a light fixture sees no
+sky, and nobody sees it; interpolated towards its visible neighbours it would draw the painting's
+shadow as a polygon half a metre wide around it. A sample whose rays mostly end within
+``COVER_M`` (``COVERED_SHARE``) is covered and weighs nothing, so it takes its uncovered
+neighbours' light.
 
-The work is capped (``max_rays``): a big interior samples a subset of its vertices, the others
-take the value of the nearest sampled vertex facing the same way. The bake runs once per
-scene, on a background thread (:class:`VisibilityBake`), and the renderer uploads the result
+The work is capped (``max_rays``): a big interior samples a subset of its vertices' sides,
+each with a chance in proportion to its surface (the walls, floor and ceiling keep all theirs),
+and the spread gives the others their value. The bake runs once per scene, on a background
+thread (:class:`VisibilityBake`), and the renderer uploads the result
 when it is ready; rays are cast through :class:`app.raycast.RayCaster` (embree).
 """
 
@@ -38,7 +42,6 @@ import threading
 from collections.abc import Callable
 
 import numpy as np
-from scipy.sparse import coo_matrix, identity
 from scipy.spatial import cKDTree
 
 from app.ao_bake import sample_points
@@ -48,21 +51,25 @@ from app.scene import Scene
 
 log = logging.getLogger(__name__)
 RAYS_PER_SIDE = 48
-SMOOTH_ROUNDS = 2
 MAX_RAYS = 2_000_000  # about 3 to 10 s of embree on one core
 CHUNK_RAYS = 16384  # rays per embree call: short holds of the interpreter lock
 OFFSET_M = 2e-3  # rays start this far off the surface (no self-hits)
 NORMAL_WEIGHT_M = 0.25  # nearest-vertex match: a flipped normal counts as 0.5 m away
 NEAREST_K, FACING_DEG = 16, 45.0  # ... and of the 16 nearest, the first facing the same way
+#: Each side's value is the mean of the samples near it (``_spread``): the SPREAD_K nearest
+#: within SPREAD_RADIUS_M, weighed by a Gaussian of SPREAD_SIGMA_M along the surface (the
+#: light through a window changes over half a metre and more; 48 rays leave a vertex's
+#: share 30-50 % off where little sky is seen) and of SPREAD_NORMAL_M across it (the floor
+#: under a coffee table and the table's top, both facing up, are not mixed).
+SPREAD_K, SPREAD_SIGMA_M, SPREAD_RADIUS_M, SPREAD_NORMAL_M = 32, 0.25, 0.6, 0.05
 #: A vertex's rays start this far (at most) towards the centre of its triangles.
 INSET_M = 0.02
 #: The share of a side's rays aimed at the sky's portal, when the room has one.
 PORTAL_SHARE = 0.5
 #: A side is covered (behind a painting, under a cabinet) when this share of its cosine rays
-#: ends within COVER_M of it; it takes its neighbours' value (FILL_ROUNDS rings at most).
+#: ends within COVER_M of it; it weighs nothing in ``_spread`` (its neighbours' value).
 COVER_M = 0.08
 COVERED_SHARE = 0.8
-FILL_ROUNDS = 6
 
 
 def cosine_directions(normals: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -87,20 +94,6 @@ def cosine_directions(normals: np.ndarray, count: int, rng: np.random.Generator)
         + local[..., 1:2] * bt[:, None, :]
         + local[..., 2:3] * n[:, None, :]
     )
-
-
-def smooth(values: np.ndarray, indices: np.ndarray, rounds: int = SMOOTH_ROUNDS) -> np.ndarray:
-    """Average each vertex with its mesh neighbours ``rounds`` times: the rays' remaining noise
-    goes, the fall-off from a window (metres wide) stays."""
-    n = values.shape[0]
-    if n == 0 or np.asarray(indices).size == 0:
-        return values
-    adj = _adjacency(indices, n) + identity(n, format="csr")
-    weight = np.asarray(adj.sum(axis=1)).ravel()
-    out = values.astype(np.float64)
-    for _ in range(rounds):
-        out = (adj @ out) / weight[:, None]
-    return out.astype(np.float32)
 
 
 def occluders(scene: Scene) -> np.ndarray:
@@ -165,32 +158,55 @@ def sky_visibility(
         )
         seen[start : start + len(rows)] = share
         covered[start : start + len(rows)] = shut_in
-    values = np.empty(wanted, np.float32)
-    values[sampled] = np.clip(seen, 0.0, 1.0)
-    cover = np.zeros(wanted, bool)
-    cover[sampled] = covered
-    if sampled.shape[0] < wanted:
-        rest = np.setdiff1d(np.arange(wanted), sampled, assume_unique=True)
-        nearest = _nearest_facing(side_pos, side_nrm, sampled, rest)
-        values[rest] = values[sampled][nearest]
-        cover[rest] = covered[nearest]
-    both = np.stack([values[:total], values[total:]], axis=1)
-    shut = np.stack([cover[:total], cover[total:]], axis=1)
+    values = _spread(side_pos, side_nrm, sampled, np.clip(seen, 0.0, 1.0), covered)
     out_meshes, offset = [], 0
     for m in scene.meshes:
         n = m.positions.shape[0]
-        part = slice(offset, offset + n)
-        # Flat-shaded models repeat a vertex per triangle: welded, the triangles share it.
-        first, inverse, welded = welded_indices(m.positions, m.normals, m.indices)
-        count = np.bincount(inverse, minlength=len(first)).astype(np.float64)[:, None]
-        mean = np.stack([np.bincount(inverse, both[part][:, k], len(first)) for k in range(2)], 1)
-        shut_mean = np.stack(
-            [np.bincount(inverse, shut[part][:, k], len(first)) for k in range(2)], 1
-        )
-        filled = fill_covered(mean / count, shut_mean / count >= 0.5, welded)
-        out_meshes.append(np.ascontiguousarray(smooth(filled, welded)[inverse]))
+        front, back = values[offset : offset + n], values[total + offset : total + offset + n]
+        out_meshes.append(np.ascontiguousarray(np.stack([front, back], axis=1)))
         offset += n
     return out_meshes
+
+
+def _spread(
+    pos: np.ndarray, nrm: np.ndarray, sampled: np.ndarray, seen: np.ndarray, covered: np.ndarray
+) -> np.ndarray:
+    """Every side's value, (len(pos),) float32: the mean of the uncovered samples (``sampled``,
+    their ``seen`` share) among its ``SPREAD_K`` nearest that face its way (normals within
+    ``FACING_DEG``) and lie within ``SPREAD_RADIUS_M``, weighed by a Gaussian of the distance
+    along the side's surface (``SPREAD_SIGMA_M``) and one across it (``SPREAD_NORMAL_M``);
+    where there is none, the nearest facing sample's.
+
+    A filter in space, not along the mesh: a real room's wall of long thin triangles and fans
+    has most vertices unsampled, each took its nearest sample's value (a patchwork of Voronoi
+    cells, one noisy value each), and two rings of mesh smoothing did not reach across them.
+    A covered sample (behind a painting) weighs nothing, so the wall behind a painting takes
+    the light of the wall around it."""
+    out = np.full(len(pos), np.nan)
+    use = sampled[~covered]
+    if len(use):
+        vals = seen[~covered].astype(np.float64)
+        tree = cKDTree(np.hstack([pos[use], nrm[use] * NORMAL_WEIGHT_M]))
+        k = min(SPREAD_K, len(use))
+        least = math.cos(math.radians(FACING_DEG))
+        for start in range(0, len(pos), 1 << 15):
+            rows = np.arange(start, min(start + (1 << 15), len(pos)))
+            _, idx = tree.query(np.hstack([pos[rows], nrm[rows] * NORMAL_WEIGHT_M]), k=k)
+            idx = idx.reshape(len(rows), k)
+            delta = pos[use][idx] - pos[rows][:, None, :]
+            d2 = np.einsum("rkj,rkj->rk", delta, delta)
+            off = np.einsum("rkj,rj->rk", delta, nrm[rows])  # along the normal: another surface
+            facing = np.einsum("rj,rkj->rk", nrm[rows], nrm[use][idx])
+            w = np.exp(-0.5 * np.maximum(d2 - off**2, 0.0) / SPREAD_SIGMA_M**2)
+            w *= np.exp(-0.5 * (off / SPREAD_NORMAL_M) ** 2)
+            w *= (facing >= least) & (d2 <= SPREAD_RADIUS_M**2)
+            total = w.sum(axis=1)
+            got = total > 0.0
+            out[rows[got]] = (w[got] * vals[idx[got]]).sum(axis=1) / total[got]
+    lost = np.flatnonzero(~np.isfinite(out))
+    if len(lost):  # nothing uncovered near: the nearest sample facing its way
+        out[lost] = seen[_nearest_facing(pos, nrm, sampled, lost)]
+    return out.astype(np.float32)
 
 
 def vertex_areas(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
@@ -231,21 +247,6 @@ def _by_area(area: np.ndarray, budget: int, rng: np.random.Generator) -> np.ndar
             hi = mid
     keep = rng.random(len(a)) < np.minimum(1.0, a * hi)
     return np.flatnonzero(keep)
-
-
-def welded_indices(
-    positions: np.ndarray, normals: np.ndarray, indices: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One vertex for each place and way of facing (1 mm, about 3 degrees): the first vertex
-    of each (W,), each vertex's welded one (N,), and the triangles' indices into them."""
-    pos = np.asarray(positions, np.float64).reshape(-1, 3)
-    key = np.hstack(
-        [np.round(pos / 1e-3), np.round(np.asarray(normals, np.float64).reshape(-1, 3) * 20.0)]
-    )
-    key = np.where(np.isfinite(key), key, 0.0).astype(np.int64)
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    return first, inverse, inverse[np.asarray(indices, np.int64).reshape(-1)]
 
 
 def _nearest_facing(
@@ -334,40 +335,6 @@ def _portal(scene: Scene, caster: RayCaster, tri: np.ndarray, seed: int) -> Port
     if not portal.inside or not portal.open.any() or portal.total_area <= 0.0:
         return None
     return portal
-
-
-def _adjacency(indices: np.ndarray, n: int):
-    tri = np.asarray(indices, np.int64).reshape(-1, 3)
-    rows = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2], tri[:, 1], tri[:, 2], tri[:, 0]])
-    cols = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0], tri[:, 0], tri[:, 1], tri[:, 2]])
-    adj = coo_matrix((np.ones(rows.shape[0]), (rows, cols)), shape=(n, n)).tocsr()
-    adj.data[:] = 1.0
-    return adj
-
-
-def fill_covered(
-    values: np.ndarray, covered: np.ndarray, indices: np.ndarray, rounds: int = FILL_ROUNDS
-) -> np.ndarray:
-    """``values`` (N, S) with each covered entry (``covered``, (N, S) bool) replaced by the
-    mean of its uncovered mesh neighbours, ring by ring (``rounds`` rings at most; one with
-    none within keeps its own)."""
-    out = values.astype(np.float64)
-    known = ~np.asarray(covered, bool)
-    n = out.shape[0]
-    if n == 0 or known.all() or np.asarray(indices).size == 0:
-        return values
-    adj = _adjacency(indices, n)
-    for _ in range(rounds):
-        if known.all():
-            break
-        w = known.astype(np.float64)
-        total, count = adj @ (out * w), adj @ w
-        take = ~known & (count > 0)
-        if not take.any():
-            break
-        out[take] = total[take] / count[take]
-        known = known | take
-    return out.astype(values.dtype)
 
 
 class VisibilityBake:

@@ -11,7 +11,7 @@ import pytest
 
 import app.sky_light as sky_light
 from app.scene import Material, Mesh, Scene, Viewpoint
-from app.sky_light import fill_covered, sky_visibility, welded_indices
+from app.sky_light import sky_visibility
 from tests.test_sky import grid
 
 
@@ -114,30 +114,3 @@ def test_the_wall_behind_a_painting_takes_the_light_of_the_wall_around_it():
     lit, plain = front(hung, vis, "north wall"), front(scene, bare, "north wall")
     assert float(plain[behind].mean()) > 0.01  # the bare wall there sees the window
     assert float(lit[behind].mean()) > 0.5 * float(plain[behind].mean())
-
-
-def test_covered_values_come_from_their_neighbours_ring_by_ring():
-    # A strip of 5 vertices, 0-1-2-3-4 in triangles (0,1,2), (1,2,3), (2,3,4).
-    tri = np.array([0, 1, 2, 1, 2, 3, 2, 3, 4], np.uint32)
-    values = np.array([[1.0], [0.0], [0.0], [0.0], [3.0]])
-    covered = np.array([[False], [True], [True], [True], [False]])
-    out = fill_covered(values, covered, tri)
-    assert out[0, 0] == 1.0 and out[4, 0] == 3.0  # uncovered: as they were
-    assert out[1, 0] == pytest.approx(1.0)  # its one uncovered neighbour, vertex 0
-    assert out[2, 0] == pytest.approx(2.0)  # vertices 0 and 4
-    assert out[3, 0] == pytest.approx(3.0)
-    alone = fill_covered(values, np.ones_like(covered), tri)
-    assert np.array_equal(alone, values)  # nothing uncovered: kept
-
-
-def test_a_flat_shaded_surface_is_welded_for_smoothing():
-    """Two triangles with a vertex each per corner (a flat-shaded export) share their edge."""
-    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
-    nrm = np.tile([0.0, 0.0, 1.0], (6, 1))
-    first, inverse, tri = welded_indices(pos, nrm, np.arange(6))
-    assert len(first) == 4
-    assert inverse[1] == inverse[3] and inverse[2] == inverse[5]
-    assert set(tri.tolist()) == {0, 1, 2, 3}
-    flipped = nrm.copy()
-    flipped[3:] *= -1.0  # the same corners facing the other way stay apart
-    assert len(welded_indices(pos, flipped, np.arange(6))[0]) == 6
