@@ -189,3 +189,26 @@ def test_the_ambient_estimate_is_found_while_loading_not_in_the_first_frame(
     window.wait_for_load()
     window.view.grabFramebuffer()
     assert not threads and window.session.scene.ambient_probe is None
+
+
+def test_with_daylight_the_sky_at_the_probes_hits_is_found_while_loading(window, monkeypatch):
+    """With daylight on, the sky seen where the probe's rays land (0.4-0.7 s on a real room)
+    is found on the loader's worker thread too, not in the first daylit frame."""
+    import threading
+
+    import app.ambient
+
+    threads: list[str] = []
+    real = app.ambient.AmbientProbe._open_at_hits
+
+    def spy(self, *a, **k):
+        threads.append(threading.current_thread().name)
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(app.ambient.AmbientProbe, "_open_at_hits", spy)
+    window.settings.set("sky.enabled", True)
+    window.load("showroom")
+    window.wait_for_load()
+    window.view.grabFramebuffer()
+    assert len(threads) == 1 and threading.main_thread().name not in threads
+    assert window.view.renderer.ambient_term() > 0.0

@@ -58,7 +58,10 @@ class SceneLoading:
         dialog.canceled.connect(progress.cancel.set)
         options = LoadOptions.from_settings(self.settings.scene)
         estimate = bool(self.settings.render.ambient_estimate)
-        future = self._loader.submit(_load_with_session, name_or_path, options, progress, estimate)
+        daylight = estimate and bool(self.settings.sky.enabled)
+        future = self._loader.submit(
+            _load_with_session, name_or_path, options, progress, estimate, daylight
+        )
         self._loading = _Loading(future, name_or_path, dialog, report, progress, time.monotonic())
         QApplication.setOverrideCursor(Qt.CursorShape.BusyCursor)  # at once, before the dialog
         self.view.set_busy(True)
@@ -194,7 +197,11 @@ class _Loading:
 
 
 def _load_with_session(
-    name: str, options: LoadOptions, progress: Progress, estimate: bool = False
+    name: str,
+    options: LoadOptions,
+    progress: Progress,
+    estimate: bool = False,
+    daylight: bool = False,
 ) -> tuple[Scene, CameraPath]:
     scene = scenes.resolve(name, options, progress.span(0.0, 0.85))
     # Texture pyramids are CPU work: built here, so the UI thread only uploads them.
@@ -202,7 +209,11 @@ def _load_with_session(
     if estimate:  # the ambient estimate's scene part, here and not in a frame
         progress.span(0.95, 1.0).report(0.0, "Estimating the light between surfaces")
         try:
-            probe_for(scene, scene.ray_caster if isinstance(scene.ray_caster, RayCaster) else None)
+            probe = probe_for(
+                scene, scene.ray_caster if isinstance(scene.ray_caster, RayCaster) else None
+            )
+            if daylight:  # the sky seen where the probe's rays land (else at the first frame)
+                probe.hit_open  # noqa: B018 - made and kept on the probe
         except Exception:  # noqa: BLE001 - the renderer tries again (and reports) at the frame
             log.exception("ambient estimate for %s failed", name)
     return scene, scenes.default_path(scene)
