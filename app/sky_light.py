@@ -51,6 +51,7 @@ from app.scene import Scene
 
 log = logging.getLogger(__name__)
 RAYS_PER_SIDE = 48
+MAX_RAYS_PER_SIDE = 256  # where the budget allows every side more (sky_visibility)
 MAX_RAYS = 2_000_000  # about 3 to 10 s of embree on one core
 CHUNK_RAYS = 16384  # rays per embree call: short holds of the interpreter lock
 OFFSET_M = 2e-3  # rays start this far off the surface (no self-hits)
@@ -62,6 +63,7 @@ NEAREST_K, FACING_DEG = 16, 45.0  # ... and of the 16 nearest, the first facing 
 #: share 30-50 % off where little sky is seen) and of SPREAD_NORMAL_M across it (the floor
 #: under a coffee table and the table's top, both facing up, are not mixed).
 SPREAD_K, SPREAD_SIGMA_M, SPREAD_RADIUS_M, SPREAD_NORMAL_M = 32, 0.25, 0.6, 0.05
+FILL_K = 4  # the samples a side that was not sampled takes its value from (_spread)
 #: A vertex's rays start this far (at most) towards the centre of its triangles.
 INSET_M = 0.02
 #: The share of a side's rays aimed at the sky's portal, when the room has one.
@@ -114,13 +116,17 @@ def occluders(scene: Scene) -> np.ndarray:
 def sky_visibility(
     scene: Scene,
     caster: RayCaster | None = None,
-    rays: int = RAYS_PER_SIDE,
+    rays: int | None = None,
     max_rays: int = MAX_RAYS,
     seed: int = 0,
     cancelled: Callable[[], bool] | None = None,
 ) -> list[np.ndarray] | None:
     """Per mesh, an (N, 2) float32 array: the share of the sky each vertex sees on the side
-    its normal points to and on the other side. None when ``cancelled()`` turned true."""
+    its normal points to and on the other side. None when ``cancelled()`` turned true.
+
+    ``rays`` per side; None: ``RAYS_PER_SIDE``, or as many more as ``max_rays`` allows every
+    side (at most ``MAX_RAYS_PER_SIDE``: a small model, the showroom's 17k sides, gets 118
+    rather than 48, and through the blinds its walls' light is less patchy)."""
     rng = np.random.default_rng(seed)
     if not scene.meshes:
         return []
@@ -136,6 +142,8 @@ def sky_visibility(
     side_pos = np.concatenate([pos + nrm * OFFSET_M, pos - nrm * OFFSET_M])
     side_nrm = np.concatenate([nrm, -nrm])
     wanted = side_pos.shape[0]
+    if rays is None:
+        rays = int(np.clip(max_rays // max(wanted, 1), RAYS_PER_SIDE, MAX_RAYS_PER_SIDE))
     portal = _portal(scene, caster, tri, seed) if rays >= 2 else None
     n_portal = int(round(rays * PORTAL_SHARE)) if portal is not None else 0
     n_cos = max(1, rays - n_portal)
@@ -175,7 +183,9 @@ def _spread(
     their ``seen`` share) among its ``SPREAD_K`` nearest that face its way (normals within
     ``FACING_DEG``) and lie within ``SPREAD_RADIUS_M``, weighed by a Gaussian of the distance
     along the side's surface (``SPREAD_SIGMA_M``) and one across it (``SPREAD_NORMAL_M``);
-    where there is none, the nearest facing sample's.
+    where there is none, the nearest facing sample's. The sides that were not sampled (a real
+    room's furniture, whose vertices are small) take the same mean over the ``FILL_K`` nearest
+    samples' spread values: a twelfth of the neighbours for most of the sides.
 
     A filter in space, not along the mesh: a real room's wall of long thin triangles and fans
     has most vertices unsampled, each took its nearest sample's value (a patchwork of Voronoi
@@ -185,28 +195,52 @@ def _spread(
     out = np.full(len(pos), np.nan)
     use = sampled[~covered]
     if len(use):
-        vals = seen[~covered].astype(np.float64)
         tree = cKDTree(np.hstack([pos[use], nrm[use] * NORMAL_WEIGHT_M]))
-        k = min(SPREAD_K, len(use))
-        least = math.cos(math.radians(FACING_DEG))
-        for start in range(0, len(pos), 1 << 15):
-            rows = np.arange(start, min(start + (1 << 15), len(pos)))
-            _, idx = tree.query(np.hstack([pos[rows], nrm[rows] * NORMAL_WEIGHT_M]), k=k)
-            idx = idx.reshape(len(rows), k)
-            delta = pos[use][idx] - pos[rows][:, None, :]
-            d2 = np.einsum("rkj,rkj->rk", delta, delta)
-            off = np.einsum("rkj,rj->rk", delta, nrm[rows])  # along the normal: another surface
-            facing = np.einsum("rj,rkj->rk", nrm[rows], nrm[use][idx])
-            w = np.exp(-0.5 * np.maximum(d2 - off**2, 0.0) / SPREAD_SIGMA_M**2)
-            w *= np.exp(-0.5 * (off / SPREAD_NORMAL_M) ** 2)
-            w *= (facing >= least) & (d2 <= SPREAD_RADIUS_M**2)
-            total = w.sum(axis=1)
-            got = total > 0.0
-            out[rows[got]] = (w[got] * vals[idx[got]]).sum(axis=1) / total[got]
+        vals = seen[~covered].astype(np.float64)
+        smooth = _weighed(tree, pos, nrm, use, vals, sampled, SPREAD_K)
+        got = np.isfinite(smooth)
+        out[sampled[got]] = smooth[got]
+        rest = np.setdiff1d(np.arange(len(pos)), sampled[got], assume_unique=True)
+        if len(rest):
+            good = sampled[got]
+            tree = cKDTree(np.hstack([pos[good], nrm[good] * NORMAL_WEIGHT_M]))
+            out[rest] = _weighed(tree, pos, nrm, good, smooth[got], rest, FILL_K)
     lost = np.flatnonzero(~np.isfinite(out))
     if len(lost):  # nothing uncovered near: the nearest sample facing its way
         out[lost] = seen[_nearest_facing(pos, nrm, sampled, lost)]
     return out.astype(np.float32)
+
+
+def _weighed(
+    tree: cKDTree,
+    pos: np.ndarray,
+    nrm: np.ndarray,
+    src: np.ndarray,
+    vals: np.ndarray,
+    rows_all: np.ndarray,
+    k: int,
+) -> np.ndarray:
+    """For the sides ``rows_all``, the weighed mean (``_spread``) of ``vals`` at the sides
+    ``src`` (the tree's points) among their ``k`` nearest; NaN where none counts."""
+    out = np.full(len(rows_all), np.nan)
+    k = min(k, len(src))
+    least = math.cos(math.radians(FACING_DEG))
+    for start in range(0, len(rows_all), 1 << 15):
+        part = np.arange(start, min(start + (1 << 15), len(rows_all)))
+        rows = rows_all[part]
+        _, idx = tree.query(np.hstack([pos[rows], nrm[rows] * NORMAL_WEIGHT_M]), k=k)
+        idx = idx.reshape(len(rows), k)
+        delta = pos[src][idx] - pos[rows][:, None, :]
+        d2 = np.einsum("rkj,rkj->rk", delta, delta)
+        off = np.einsum("rkj,rj->rk", delta, nrm[rows])  # along the normal: another surface
+        facing = np.einsum("rj,rkj->rk", nrm[rows], nrm[src][idx])
+        w = np.exp(-0.5 * np.maximum(d2 - off**2, 0.0) / SPREAD_SIGMA_M**2)
+        w *= np.exp(-0.5 * (off / SPREAD_NORMAL_M) ** 2)
+        w *= (facing >= least) & (d2 <= SPREAD_RADIUS_M**2)
+        total = w.sum(axis=1)
+        got = total > 0.0
+        out[part[got]] = (w[got] * vals[idx[got]]).sum(axis=1) / total[got]
+    return out
 
 
 def vertex_areas(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
