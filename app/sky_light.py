@@ -309,10 +309,11 @@ def _nearest_facing(
 
 def _inside_points(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
     """Each vertex moved towards the centre of its triangles (as the AO bake's
-    ``sample_points``), by at most ``INSET_M``: a ceiling's corner vertex lies on the wall's
-    plane, and from there half its rays slip through the wall (embree ignores a hit at
-    distance 0): the corner saw half the sky, and its triangle, two metres long, drew a white
-    wedge across the ceiling."""
+    ``sample_points``), by at most ``INSET_M``: the value is spread across the vertex's
+    triangles, so it should be the light of the surface there. At a corner or along a wall's
+    foot the wall cuts off half the sky right at the vertex (a floor vertex at a wall saw 0 %
+    of the window, 2 cm in 1.9 %); without the inset the living room's daylit FLIP was 0.254
+    instead of 0.243 and the noise test's error ratio 0.55."""
     pos = np.asarray(positions, np.float64).reshape(-1, 3)
     move = sample_points(pos, indices) - pos
     length = np.linalg.norm(move, axis=1, keepdims=True)
