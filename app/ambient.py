@@ -293,7 +293,6 @@ class AmbientProbe:
         self._gain = np.where(self._hit, self.rho[self._face // 2], 0.0)
         self._gain_rgb = np.where(self._hit[..., None], self.rho_rgb[self._face // 2], 0.0)
 
-    @property
     def hit_open(self) -> np.ndarray:
         """:meth:`_open_at_hits`, made once, when daylight first asks (a lamp-lit room does
         not wait for it). Its own random numbers: the probe's other draws stay as they were."""
@@ -474,7 +473,7 @@ class AmbientProbe:
         if sky_sh is not None:  # the sky's light at the hits themselves (_open_at_hits)
             facing = self.hit_normal.reshape(-1, 3).astype(np.float64)
             sky_rgb = _sky_irradiance_rgb(np.nan_to_num(facing), sky_sh)
-            at_hits_rgb = at_hits_rgb + (sky_rgb * self.hit_open.reshape(-1, 1)).reshape(
+            at_hits_rgb = at_hits_rgb + (sky_rgb * self.hit_open().reshape(-1, 1)).reshape(
                 sun_hits.shape
             )
         # The faces' own light at the hits (the lamps', and the glowing surfaces' without

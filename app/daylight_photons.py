@@ -227,21 +227,6 @@ class Portal:
     def total_area(self) -> float:
         return float(self.area[self.open].sum())
 
-    def cell_index(self, p: np.ndarray, face: np.ndarray) -> np.ndarray:
-        """The cell of each point ``p`` on the box (on faces ``face``, as ``_box_exit`` gives
-        them), (N,) int."""
-        out = np.zeros(len(p), np.int64)
-        at = 0
-        lo, hi = self.lo, self.hi
-        for k, side, a, b, na, nb in _face_grids(lo, hi):
-            on = face == 2 * k + (side > 0)
-            if on.any():
-                ia = ((p[on, a] - lo[a]) / (hi[a] - lo[a]) * na).astype(np.int64)
-                ib = ((p[on, b] - lo[b]) / (hi[b] - lo[b]) * nb).astype(np.int64)
-                out[on] = at + np.clip(ia, 0, na - 1) * nb + np.clip(ib, 0, nb - 1)
-            at += na * nb
-        return out
-
     def sample_open(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """``n`` points uniform over the open cells' area, (n, 3); none when none is open."""
         cells = np.flatnonzero(self.open)
@@ -260,7 +245,7 @@ class Portal:
         if len(o) == 0:
             return np.zeros(0)
         t, face = _box_exit(o, d, self.lo, self.hi)
-        cell = self.cell_index(o + d * t[:, None], face)
+        cell = _cell_index(self.lo, self.hi, o + d * t[:, None], face)
         cos = np.abs(d[np.arange(len(d)), face // 2])
         area = self.total_area
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -310,18 +295,25 @@ def _face_grids(lo: np.ndarray, hi: np.ndarray) -> list[tuple[int, int, int, int
     return faces
 
 
-def _crossings(lo: np.ndarray, hi: np.ndarray, p: np.ndarray, face: np.ndarray) -> np.ndarray:
-    """How many of the points ``p`` (on the box, on faces ``face``) lie in each cell, (C,)."""
-    counts = []
+def _cell_index(lo: np.ndarray, hi: np.ndarray, p: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """The cell of each point ``p`` on the box (on faces ``face``, as ``_box_exit`` gives
+    them), (N,) int into the cells of every face in ``_face_grids`` order."""
+    out = np.zeros(len(p), np.int64)
+    at = 0
     for k, side, a, b, na, nb in _face_grids(lo, hi):
-        m = np.zeros((na, nb))
         on = face == 2 * k + (side > 0)
         if on.any():
-            ia = np.clip(((p[on, a] - lo[a]) / (hi[a] - lo[a]) * na).astype(np.int64), 0, na - 1)
-            ib = np.clip(((p[on, b] - lo[b]) / (hi[b] - lo[b]) * nb).astype(np.int64), 0, nb - 1)
-            np.add.at(m, (ia, ib), 1.0)
-        counts.append(m.reshape(-1))
-    return np.concatenate(counts)
+            ia = ((p[on, a] - lo[a]) / (hi[a] - lo[a]) * na).astype(np.int64)
+            ib = ((p[on, b] - lo[b]) / (hi[b] - lo[b]) * nb).astype(np.int64)
+            out[on] = at + np.clip(ia, 0, na - 1) * nb + np.clip(ib, 0, nb - 1)
+        at += na * nb
+    return out
+
+
+def _crossings(lo: np.ndarray, hi: np.ndarray, p: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """How many of the points ``p`` (on the box, on faces ``face``) lie in each cell, (C,)."""
+    cells = sum(na * nb for *_, na, nb in _face_grids(lo, hi))
+    return np.bincount(_cell_index(lo, hi, p, face), minlength=cells).astype(np.float64)
 
 
 def _dilate_all(lo: np.ndarray, hi: np.ndarray, count: np.ndarray) -> np.ndarray:

@@ -225,15 +225,16 @@ def _weighed(
     out = np.full(len(rows_all), np.nan)
     k = min(k, len(src))
     least = math.cos(math.radians(FACING_DEG))
+    src_pos, src_nrm = pos[src], nrm[src]
     for start in range(0, len(rows_all), 1 << 15):
         part = np.arange(start, min(start + (1 << 15), len(rows_all)))
         rows = rows_all[part]
         _, idx = tree.query(np.hstack([pos[rows], nrm[rows] * NORMAL_WEIGHT_M]), k=k)
         idx = idx.reshape(len(rows), k)
-        delta = pos[src][idx] - pos[rows][:, None, :]
+        delta = src_pos[idx] - pos[rows][:, None, :]
         d2 = np.einsum("rkj,rkj->rk", delta, delta)
         off = np.einsum("rkj,rj->rk", delta, nrm[rows])  # along the normal: another surface
-        facing = np.einsum("rj,rkj->rk", nrm[rows], nrm[src][idx])
+        facing = np.einsum("rj,rkj->rk", nrm[rows], src_nrm[idx])
         w = np.exp(-0.5 * np.maximum(d2 - off**2, 0.0) / SPREAD_SIGMA_M**2)
         w *= np.exp(-0.5 * (off / SPREAD_NORMAL_M) ** 2)
         w *= (facing >= least) & (d2 <= SPREAD_RADIUS_M**2)
@@ -262,15 +263,14 @@ def vertex_areas(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
 def _by_area(area: np.ndarray, budget: int, rng: np.random.Generator) -> np.ndarray:
     """About ``budget`` of the sides, each kept with a chance in proportion to its surface
     (at most 1): the walls, floor and ceiling a viewer sees, drawn by few large triangles,
-    are all kept; a tap's thousand tiny vertices share a few samples and take the nearest's
-    value. Random sides, a twentieth of a real room's, left a wall's few vertices to the
-    nearest sample a metre away: blotches of one value each."""
+    are all kept; a tap's thousand tiny vertices share a few samples and take their value
+    from them (``_spread``). Random sides, a twentieth of a real room's, left a wall's few
+    vertices to the nearest sample a metre away: blotches of one value each."""
     a = np.maximum(area, 0.0)
-    lo, hi = 0.0, 1.0
     total = float(a.sum())
     if total <= 0.0:
         return np.sort(rng.choice(len(a), budget, False))
-    hi = budget / total
+    lo, hi = 0.0, budget / total
     while np.minimum(1.0, a * hi).sum() < budget:  # grow the scale until the budget is met
         hi *= 2.0
     for _ in range(40):  # then halve the interval: sum(min(1, c a)) = budget

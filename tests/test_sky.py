@@ -380,3 +380,31 @@ def test_daylight_from_the_window_tab_brightens_the_view(qtbot):
     assert renderer.gpu_scene is uploaded
     assert [light.kind for light in renderer.frame_lights()][-1] == "directional"
     w.close()
+
+
+def test_ticking_daylight_at_the_opening_exposure_turns_the_exposure_automatic(qtbot):
+    """A new user ticks "Daylight": a sunlit room is some eight stops brighter than the fixed
+    exposure a lamp-lit room opens with, and the view was a white screen. The exposure turns
+    automatic and the tab says so; a fixed exposure the user chose stays as it is."""
+    from PyQt6.QtWidgets import QCheckBox
+
+    from tests.test_render import checker_scene
+    from ui.main_window import MainWindow
+
+    s = Settings()
+    s.render.overlay = False
+    w = MainWindow(s, checker_scene())
+    qtbot.addWidget(w)
+    w.show()
+    qtbot.waitExposed(w)
+    assert s.render.exposure_mode == "manual"
+    box = w.sky_panel.editors["sky.enabled"]
+    assert isinstance(box, QCheckBox)
+    box.setChecked(True)
+    assert s.render.exposure_mode == "auto"
+    assert "automatic" in w.sky_panel.status.text()
+    box.setChecked(False)
+    s.set("render.exposure_mode", "manual")
+    s.set("render.exposure_ev", 9.0)  # the user's own daylight exposure
+    box.setChecked(True)
+    assert s.render.exposure_mode == "manual" and s.render.exposure_ev == 9.0

@@ -38,7 +38,7 @@ from app.indirect import PhotonService, wanted
 from app.paths import CameraPath
 from app.scene import Scene
 from app.session import Session
-from app.settings import Settings, SettingsError
+from app.settings import RenderSettings, Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
 from ui import guard, window_state
 from ui.controls import ControlsDialog
@@ -428,6 +428,8 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
 
     def _setting_changed(self, key: str) -> None:
         """Keep the panels showing the one model, and redraw."""
+        if key == "sky.enabled":
+            self._expose_for_daylight()
         if key.startswith(("render.", "tcr.", "cps.", "photons.")) or not key:
             self.panel.refresh()
             self.tcr_panel.refresh()
@@ -440,6 +442,21 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         if key == "scene.unit_scale":
             self._reload_file()
         self.view.update()
+
+    def _expose_for_daylight(self) -> None:
+        """Daylight turned on at the fixed exposure a lamp-lit room opens with: a sunlit room
+        is some eight stops brighter and showed as a white screen. The exposure turns
+        automatic, and the Sun and sky tab says so; a fixed exposure the user chose stays."""
+        r = self.settings.render
+        if not self.settings.sky.enabled or r.exposure_mode != "manual":
+            return
+        if r.exposure_ev != RenderSettings().exposure_ev:
+            return
+        self.settings.set("render.exposure_mode", "auto")
+        self.panel.refresh()
+        self.sky_panel.status.setText(
+            "Exposure set to automatic for daylight (Settings, Exposure, to fix it again)."
+        )
 
     def _reload_file(self) -> None:
         """Load the open model file again (its units changed); built-in scenes stay as they are."""

@@ -213,7 +213,7 @@ def _load_with_session(
                 scene, scene.ray_caster if isinstance(scene.ray_caster, RayCaster) else None
             )
             if daylight:  # the sky seen where the probe's rays land (else at the first frame)
-                probe.hit_open  # noqa: B018 - made and kept on the probe
+                probe.hit_open()
         except Exception:  # noqa: BLE001 - the renderer tries again (and reports) at the frame
             log.exception("ambient estimate for %s failed", name)
     return scene, scenes.default_path(scene)
