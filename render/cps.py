@@ -360,7 +360,14 @@ class CpsLightingPass(CpsPass):
 
 
 class CpsFilterPass(CpsPass):
-    """Blocks back to pixels: raw, ordinary bilinear or the paper's hierarchical filter."""
+    """Blocks back to pixels: raw, ordinary bilinear or the paper's hierarchical filter.
+
+    Folded (``folded``, set by the renderer when no pass between this one and the present
+    pass needs the pixels): the present pass reconstructs each pixel as it tone-maps it
+    (``present.frag.glsl``, CPS_FOLD), which saves writing and reading the eye's colour once a
+    frame. This pass then only clears the colour for the passes that add light to it (the
+    glow of emissive meshes, ``clears``), and :meth:`resolve` draws the reconstruction into
+    the colour when someone reads it (``Renderer.read_hdr``)."""
 
     name = "cps_filter"
     reads = ("levels", "blocks")
@@ -369,39 +376,71 @@ class CpsFilterPass(CpsPass):
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
         self.from_atlas = True
+        self.kind = "hierarchical"
+        self.temporal = False
+        self.folded = False  # the present pass reconstructs this frame (the renderer decides)
+        self.clears = False  # folded: clear the colour for light added on top of it
+        self._resolved = True  # the colour holds this frame's reconstruction
 
     def configure(self, settings, scene, frame) -> bool:
         self.from_atlas = settings.render.lighting == "fragment"
-        self.writes = ("filtered",) if settings.cps.temporal else ("hdr",)
+        self.kind = settings.cps.filter
+        self.temporal = bool(settings.cps.temporal)
+        self.writes = ("filtered",) if self.temporal else ("hdr",)
+        self.folded = self.clears = False
+        self._resolved = True
         return cps_mode(settings) == "cps"
 
+    def defines(self) -> dict[str, object]:
+        """The reconstruction's variant (cps_reconstruct.glsl), for this pass or the present."""
+        return {
+            "FROM_ATLAS": self.from_atlas,
+            "FILTER_HIERARCHICAL": self.kind == "hierarchical",
+            "FILTER_BILINEAR": self.kind == "bilinear",
+        }
+
+    def bind(self, prog: moderngl.Program, cps, size: tuple[int, int]) -> None:
+        """One eye's blocks and level map for the reconstruction in ``prog``."""
+        set_uniforms(prog, {}, optional={"u_size": size})  # optimised out unfiltered
+        bind_texture(prog, "levels", cps.levels, optional=True)  # raw blocks need none
+        if self.from_atlas:
+            bind_texture(prog, "atlas", cps.atlas)
+            uniform(prog, "u_atlas_offsets").write(np.array(cps.atlas_offsets, np.int32).tobytes())
+        else:
+            bind_texture(prog, "blocks", cps.blocks)
+
     def execute(self, frame: FrameContext, res: Resources) -> None:
-        cf = frame.cps
-        kind = cf.settings.filter
-        prog = self.shaders.program(
-            "fullscreen.vert.glsl",
-            "cps_filter.frag.glsl",
-            {
-                "FROM_ATLAS": self.from_atlas,
-                "FILTER_HIERARCHICAL": kind == "hierarchical",
-                "FILTER_BILINEAR": kind == "bilinear",
-            },
-        )
+        self._resolved = not self.folded
+        if self.folded:
+            if self.clears:
+                for tgt in res.targets:
+                    tgt.forward.depth_mask = False  # the G-buffer's depth stays
+                    tgt.forward.clear(0.0, 0.0, 0.0, 0.0)
+                    tgt.forward.depth_mask = True
+            return
+        self._draw(res, add=False)
+
+    def resolve(self) -> None:
+        """Draw a folded frame's reconstruction into the eyes' colour (once), over the light
+        the later passes added to it: the colour then holds what the present pass showed."""
+        if self._resolved:
+            return
+        self._resolved = True
+        self._draw(self.res, add=self.clears)
+
+    def _draw(self, res: Resources, add: bool) -> None:
+        prog = self.shaders.program("fullscreen.vert.glsl", "cps_filter.frag.glsl", self.defines())
         self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        if add:
+            self.ctx.enable(moderngl.BLEND)
+            self.ctx.blend_func = moderngl.ONE, moderngl.ONE
         for tgt, cps in zip(res.targets, res.cps):
-            set_uniforms(prog, {}, optional={"u_size": tgt.size})  # optimised out unfiltered
-            bind_texture(prog, "levels", cps.levels, optional=True)  # raw blocks need none
-            if self.from_atlas:
-                bind_texture(prog, "atlas", cps.atlas)
-                uniform(prog, "u_atlas_offsets").write(
-                    np.array(cps.atlas_offsets, np.int32).tobytes()
-                )
-            else:
-                bind_texture(prog, "blocks", cps.blocks)
-            fbo = cps.filtered_fbo if cf.settings.temporal else tgt.forward
+            self.bind(prog, cps, tgt.size)
+            fbo = cps.filtered_fbo if self.temporal else tgt.forward
             fbo.use()
             self.fullscreen(prog)
+        self.ctx.disable(moderngl.BLEND)
 
 
 class CpsMaskPass(CpsPass):

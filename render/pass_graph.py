@@ -228,6 +228,9 @@ class RenderPass(ABC):
     reads: tuple[str, ...] = ()
     optional_reads: tuple[str, ...] = ()
     writes: tuple[str, ...] = ()
+    # Only adds light to "hdr" (blended ONE, ONE) and reads nothing else of it: a pass after
+    # the CPS filter that the present pass may fold the filter past (Renderer.fold_cps_filter).
+    adds_to_hdr = False
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
         self.ctx = ctx

@@ -21,6 +21,7 @@ from render.constants import (
     LIGHT_TILE,
     MAX_PER_TILE,
 )
+from render.gpu_scene import GpuScene
 from render.materials import alpha_mask_defines, material_defines
 from render.pass_graph import (
     FrameContext,
@@ -416,23 +417,34 @@ class EmissivePass(RenderPass):
     name = "emissive"
     reads = ("depth", "hdr")
     writes = ("hdr",)
+    adds_to_hdr = True  # blended ONE, ONE: the colour under it is not read (render.cps fold)
 
     def configure(self, settings, scene, frame) -> bool:
         return deferred(settings)
 
-    def execute(self, frame: FrameContext, res: Resources) -> None:
-        scene = frame.scene
-        emitters = [
+    @staticmethod
+    def emitters(scene: GpuScene) -> tuple[list[int], list[int]]:
+        """The standalone meshes and the merged groups that glow (blended ones are the blend
+        pass's)."""
+        meshes = [
             i
             for i in scene.standalone
-            if any(scene.meshes[i].material.emissive)
-            and not scene.meshes[i].blended  # the blend pass adds their glow
+            if any(scene.meshes[i].material.emissive) and not scene.meshes[i].blended
         ]
         groups = [
             g
             for g, group in enumerate(scene.groups)
             if any(group.material.emissive) and not group.blended
         ]
+        return meshes, groups
+
+    def adds_light(self, scene: GpuScene) -> bool:
+        """Whether this frame adds anything to the colour."""
+        return any(self.emitters(scene))
+
+    def execute(self, frame: FrameContext, res: Resources) -> None:
+        scene = frame.scene
+        emitters, groups = self.emitters(scene)
         if not emitters and not groups:
             return
         ctx = self.ctx

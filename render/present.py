@@ -11,6 +11,7 @@ import moderngl
 import numpy as np
 
 from render.constants import TEXTURE_UNITS
+from render.cps import CpsFilterPass
 from render.pass_graph import (
     BySize,
     FrameContext,
@@ -40,6 +41,10 @@ class PresentPass(RenderPass):
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
         self.visualize = False
+        # The CPS filter folded in (Renderer.fold_cps_filter): its pass (render.cps), whose
+        # variant and inputs the reconstruction here uses, and whether light was added on top
+        # of it in the eyes' colour (emissive glow); None: the colour holds the whole picture.
+        self.fold: tuple[CpsFilterPass, bool] | None = None
         self.tone: dict[str, object] = {}
         self.upscaler = "easu"  # render.upscale.UPSCALERS: how eyes drawn smaller are enlarged
         self.sharpen = 0.0  # render.sharpen: RCAS after EASU, 0 off
@@ -75,10 +80,14 @@ class PresentPass(RenderPass):
         src = res.targets[0].size
         w, h = frame.view_size or src
         scaled = upscale_defines(src, (w, h), self.upscaler, self.sharpen)
+        fold = self.fold
+        folded: dict[str, object] = {}
+        if fold is not None:
+            folded = {"CPS_FOLD": True, "FOLD_ADD": fold[1], **fold[0].defines()}
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "present.frag.glsl",
-            {"VISUALIZE": levels is not None, "SHOW_REUSE": show_reuse, **self.tone},
+            {"VISUALIZE": levels is not None, "SHOW_REUSE": show_reuse, **self.tone, **folded},
         )
         x, y = frame.out_origin
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
@@ -96,7 +105,10 @@ class PresentPass(RenderPass):
             else:
                 frame.out.viewport = (*origin, w, h)
             uniform(prog, "u_origin").value = origin
-            bind_texture(prog, "eye_color", tgt.color)
+            if fold is None or fold[1]:
+                bind_texture(prog, "eye_color", tgt.color)
+            if fold is not None:
+                fold[0].bind(prog, res.cps[index], tgt.size)
             if levels is not None:
                 bind_texture(prog, "levels", levels[index])
             if show_reuse:

@@ -335,3 +335,54 @@ def test_reprojection_keeps_a_walking_view_from_smearing(host, scene):
         out = host.read_pixels().astype(float)
         errors[reproject] = np.abs(out - full).mean()
     assert errors[True] < 0.9 * errors[False], errors
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.5])
+def test_the_filter_folded_into_the_present_shows_the_same_picture(scale):
+    """Where nothing between the CPS filter and the present pass needs the pixels, the present
+    pass reconstructs them itself (one full-screen pass fewer): the picture on screen, and the
+    colour read back, are the filter's own pass's within half-float rounding, with the
+    showroom's glowing lamps added on top of the folded lighting."""
+    room = resolve("showroom")  # with its emissive lamps: the colour is cleared and added to
+    h = OffscreenHost(W, H, Settings())
+    try:
+        h.set_scene(room)
+        h.set_text_image(None)
+        configure(h, cps__mode="cps", render__scale=scale)
+        fi = frame(h, room)
+        shown, colour = {}, {}
+        for fold in (True, False):
+            h.renderer.fold_cps_filter = fold
+            shown[fold] = h.draw(fi).astype(int)
+            assert (h.renderer.present.fold is not None) == fold
+            assert h.renderer.cps_filter.folded == fold
+            # the lamps glow: light added to a cleared colour
+            assert h.renderer.cps_filter.clears == fold
+            colour[fold] = hdr(h)
+        assert not h.renderer.errors
+    finally:
+        h.close()
+    diff = np.abs(shown[True] - shown[False])
+    assert diff.max() <= 4 and diff.mean() < 0.1, (diff.max(), diff.mean())
+    for folded, own in zip(colour[True], colour[False]):
+        assert np.allclose(folded, own, rtol=2e-3, atol=1e-4)
+        assert own.max() > 0.0
+
+
+@pytest.mark.parametrize(
+    "values",
+    [{"render__reflections": "screen"}, {"cps__temporal": True}, {"render__exposure_mode": "auto"}],
+)
+def test_the_filter_keeps_its_pass_when_a_later_pass_reads_the_pixels(host, scene, values):
+    """Reflections, the temporal filter and the exposure meter read the lit picture before it
+    is shown: the filter must have drawn it, so it is not folded."""
+    configure(host, cps__mode="cps")
+    for key, value in values.items():
+        host.settings.set(key.replace("__", "."), value)
+    host.draw(frame(host, scene))
+    assert host.renderer.present.fold is None
+    assert not host.renderer.cps_filter.folded
+    configure(host, cps__mode="cps")
+    host.draw(frame(host, scene))
+    assert host.renderer.present.fold is not None  # and with them off, it is
+    assert not host.renderer.cps_filter.clears  # no glow in this scene: nothing to clear

@@ -5,6 +5,12 @@
 // Brightness. The lighting output is finite (storable); an emissive surface brighter than a
 // half float holds (inf) is clamped to the largest one, so the tone curves never see inf/inf.
 #include "exposure_tonemap.glsl"
+#ifdef CPS_FOLD
+// The CPS filter folded in (render.cps.CpsFilterPass): the coarse lighting reconstructed here
+// (cps_reconstruct.glsl, with its variant's defines), plus the eye's colour under FOLD_ADD,
+// where the passes between added light to a cleared colour (emissive glow).
+#include "cps_reconstruct.glsl"
+#endif
 
 uniform sampler2D u_eye_color;
 uniform float u_exposure;
@@ -15,7 +21,9 @@ out vec4 out_color;
 #ifdef VISUALIZE
 // CPS detail visualisation: finest level unpainted, then blue, cyan, green, yellow, red
 // (CPS_LEVELS and CPS_LEVEL_COLOURS injected from render/constants.py).
-uniform usampler2D u_levels;  // half-resolution level map
+#ifndef CPS_FOLD
+uniform usampler2D u_levels;  // half-resolution level map (cps_common.glsl's when folded)
+#endif
 const vec3 LEVEL_COLOURS[CPS_LEVELS] = vec3[CPS_LEVELS](CPS_LEVEL_COLOURS);
 #endif
 
@@ -33,7 +41,15 @@ vec3 srgb_encode(vec3 c) {
 
 void main() {
     ivec2 q = ivec2(gl_FragCoord.xy) - u_origin;
+#ifdef CPS_FOLD
+    vec3 hdr = cps_reconstruct(q);
+#ifdef FOLD_ADD
+    hdr += texelFetch(u_eye_color, q, 0).rgb;
+#endif
+    hdr = min(hdr, vec3(65504.0));
+#else
     vec3 hdr = min(texelFetch(u_eye_color, q, 0).rgb, vec3(65504.0));
+#endif
     vec3 c = srgb_encode(tone_map(hdr * u_exposure));
 #ifdef VISUALIZE
     int s = int(texelFetch(u_levels, q >> 1, 0).r);
