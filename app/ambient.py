@@ -79,7 +79,7 @@ from app.ambient_field import (
 from app.photons import _mesh_optics, _scene_geometry, emitting_side
 from app.raycast import RayCaster
 from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff, range_window
-from app.sky_light import occluders
+from app.sky_light import lets_light_through, occluders
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 # Surface points: SAMPLES_PER_M2 of the scene's surface, within SAMPLE_RANGE. At 2048 the estimate
@@ -188,6 +188,7 @@ class AmbientProbe:
         self._hit_open: np.ndarray | None = None  # made with daylight's first estimate
         self.emitted_rgb = np.zeros((0, 3))  # per face, the glowing surfaces' light (lux, RGB)
         self.mean_albedo = 0.0
+        self.clear = np.zeros(0, bool)  # per point: on a surface that lets light through
         self._cell: float | None = None
         self._layout: FieldLayout | None = None  # where the open faces fall on the field
         # Per face and ray, the probe's own (the same for every estimate): whether the ray met
@@ -235,6 +236,10 @@ class AmbientProbe:
         )
         self.normal = normal[pick]
         self.rho = rho[pick]
+        # A glowing pane or glass (what the rays pass through, app.sky_light.occluders): its
+        # points hold the light arriving at the window, from the blinds centimetres away, not
+        # a surface's, so the field by place leaves them out (``_by_place``).
+        self.clear = lets_light_through(scene)[owner[pick]]
         self.rho_rgb = rho_rgb[pick]  # the colour the bounce takes (app.ambient_field chroma)
         diag = float(np.linalg.norm(tris.reshape(-1, 3).max(0) - tris.reshape(-1, 3).min(0)))
         self.eps = 1e-4 * max(diag, 1e-3)
@@ -553,6 +558,7 @@ class AmbientProbe:
         scene, have nothing lying on them and are not deep in a crease
         (``FIELD_CREASE_MAX``)."""
         open_faces = (closure > 0.0) & ~self.covered & (self.crease <= FIELD_CREASE_MAX)
+        open_faces &= ~np.repeat(self.clear, 2)
         faces = np.flatnonzero(open_faces)
         if not len(faces):
             return None

@@ -98,16 +98,26 @@ def cosine_directions(normals: np.ndarray, count: int, rng: np.random.Generator)
     )
 
 
+def lets_light_through(scene: Scene) -> np.ndarray:
+    """Per mesh, whether it casts no shadow in the renderer (render/shadows.py ``casts``): a
+    glowing pane that shows the sky beyond a window, a lamp's bulb, blended glass."""
+    out = np.zeros(len(scene.meshes), bool)
+    for i, m in enumerate(scene.meshes):
+        if 0 <= m.material < len(scene.materials):
+            mat = scene.materials[m.material]
+            out[i] = any(mat.emissive) or mat.alpha_mode == "BLEND"
+    return out
+
+
 def occluders(scene: Scene) -> np.ndarray:
-    """The triangles that hide the sky, (T, 3, 3) float32: every mesh but those that cast no
-    shadow in the renderer (render/shadows.py ``casts``): a glowing pane that shows the sky
-    beyond a window, a lamp's bulb, and blended glass let the sky's light through."""
-    parts = []
-    for m in scene.meshes:
-        mat = scene.materials[m.material] if 0 <= m.material < len(scene.materials) else None
-        if mat is not None and (any(mat.emissive) or mat.alpha_mode == "BLEND"):
-            continue
-        parts.append(np.asarray(m.positions)[np.asarray(m.indices, np.int64)])
+    """The triangles that hide the sky, (T, 3, 3) float32: every mesh but those that let the
+    sky's light through (:func:`lets_light_through`)."""
+    clear = lets_light_through(scene)
+    parts = [
+        np.asarray(m.positions)[np.asarray(m.indices, np.int64)]
+        for m, through in zip(scene.meshes, clear)
+        if not through
+    ]
     if not parts:
         return np.zeros((0, 3, 3), np.float32)
     return np.concatenate(parts).astype(np.float32)

@@ -288,3 +288,44 @@ def test_a_lamps_light_past_its_range_comes_with_the_even_light():
     direct = 8.0 / (2.0 * HALF[2] - 0.4) ** 2  # lux, facing the lamp, nothing in between
     assert field_short - field_whole == pytest.approx(direct / np.pi, rel=0.15)
     assert 0.85 * lum_whole < lum_short <= lum_whole * 1.02
+
+
+def test_the_window_glass_does_not_light_the_wall_beside_it():
+    """The showroom's window pane glows (it shows the sky) and lets light through, so rays
+    pass it (as its lamp shades and downlights); its points hold the light arriving at the window from the sunlit blinds a few
+    centimetres away, not a surface's. Spread into the field they lit the wall round the
+    window as a white halo (2.3 times the light there in daylight). They are left out; the
+    wall away from the window keeps its light."""
+    from app import scenes
+    from app.sky import scene_sky
+
+    s = Settings()
+    s.sky.enabled = True
+    room = scenes.resolve("showroom")
+    with OffscreenHost(64, 32, s) as host:
+        host.set_scene(room)
+        with host.ctx:
+            sh = host.renderer.daylight.update_sky(scene_sky(s.sky, room)).sh
+        lights = host.renderer.frame_lights()
+    wall = np.array([[-3.99, 1.6, -0.8], [-3.99, 1.6, 2.0], [-3.99, 2.5, 0.6]])  # round the pane
+    far = np.array([[-3.99, 1.6, -2.2]])
+    facing = np.array([[1.0, 0.0, 0.0]])  # into the room
+    light = {}
+    for kept in (False, True):
+        probe = AmbientProbe(room)
+        pane = probe.clear
+        p = probe.points
+        in_window = (np.abs(p[:, 0] + 3.995) < 1e-3) & (np.abs(p[:, 1] - 1.6) < 0.65)
+        in_window &= np.abs(p[:, 2] - 0.6) < 1.05  # the pane: 2.2 x 1.4 m, 5 mm in the wall
+        assert in_window.sum() > 10 and pane[in_window].all()
+        assert not pane[np.abs(p[:, 0] + 4.0) < 1e-3].all()  # the wall round it is not clear
+        if kept:
+            probe.clear = np.zeros_like(pane)
+        est = probe.estimate(lights, sh)
+        assert est.by_place is not None
+        light[kept] = (
+            est.by_place.lookup(wall, np.repeat(facing, len(wall), axis=0)),
+            est.by_place.lookup(far, facing),
+        )
+    assert (light[False][0] < 0.6 * light[True][0]).all(), light
+    assert np.allclose(light[False][1], light[True][1], rtol=0.02), light
