@@ -292,10 +292,10 @@ def test_a_lamps_light_past_its_range_comes_with_the_even_light():
 
 def test_the_window_glass_does_not_light_the_wall_beside_it():
     """The showroom's window pane glows (it shows the sky) and lets light through, so rays
-    pass it (as its lamp shades and downlights); its points hold the light arriving at the window from the sunlit blinds a few
-    centimetres away, not a surface's. Spread into the field they lit the wall round the
-    window as a white halo (2.3 times the light there in daylight). They are left out; the
-    wall away from the window keeps its light."""
+    pass it (as its lamp shades and downlights); its points hold the light arriving at the
+    window from the sunlit blinds a few centimetres away, not a surface's. Spread into the
+    field they lit the wall round the window as a white halo (2.3 times the light there in
+    daylight). They are left out; the wall away from the window keeps its light."""
     from app import scenes
     from app.sky import scene_sky
 
