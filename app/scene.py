@@ -55,6 +55,10 @@ class Material:
     alpha_mode: str = "OPAQUE"  # "OPAQUE", "MASK" (cut out below alpha_cutoff) or "BLEND"
     alpha_cutoff: float = 0.5
     double_sided: bool = False
+    # A glowing pane standing for the sky beyond a window (the built-in rooms' windows): drawn
+    # while daylight is off; with daylight on the sky itself shows through the opening, and
+    # the floor mirrors it (render.gpu_scene.GpuScene.shown). No file sets it.
+    sky_standin: bool = False
 
 
 @dataclass

@@ -234,6 +234,7 @@ def _corridor_materials(textures: dict[str, Texture]) -> _Materials:
     m.add("lamp_shade", color=srgb(240, 228, 205), roughness=0.9, emissive=(0.9, 0.62, 0.32))
     m.add("downlight", color=srgb(250, 245, 235), roughness=0.5, emissive=(2.0, 1.75, 1.45))
     m.add("window_sky", color=srgb(30, 34, 40), roughness=0.1, emissive=(0.62, 0.78, 1.0))
+    m.materials[m["window_sky"]].sky_standin = True  # daylight shows the sky itself there
     m.add("bronze", color=srgb(62, 54, 46), roughness=0.35, metallic=0.7)
     m.add("exit_sign", color=srgb(20, 160, 70), roughness=0.3, emissive=(0.1, 1.2, 0.35))
     m.add("signal_red", color=srgb(190, 24, 20), roughness=0.25)

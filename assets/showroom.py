@@ -385,6 +385,7 @@ def _showroom_materials(textures: dict[str, Texture]) -> _Materials:
     m.add("brass", color=srgb(190, 150, 90), roughness=0.3, metallic=1.0)
     m.add("lamp_shade", color=srgb(240, 228, 205), roughness=0.9, emissive=(0.9, 0.62, 0.32))
     m.add("window_sky", color=srgb(30, 34, 40), roughness=0.1, emissive=(0.62, 0.78, 1.0))
+    m.materials[m["window_sky"]].sky_standin = True  # daylight shows the sky itself there
     m.add("blinds", color=srgb(226, 222, 212), roughness=0.4)
     m.add("switch_plastic", color=srgb(244, 242, 236), roughness=0.3)
     m.add("chrome", color=srgb(230, 230, 232), roughness=0.15, metallic=1.0)

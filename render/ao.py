@@ -183,10 +183,10 @@ class AmbientOcclusionPass(RenderPass):
         set_uniforms(prog, {"u_view_projection": eye.view_projection})
         set_uniforms(prog, {}, optional={"u_ao_strength": self.strength})
         scene = frame.scene
-        for g in range(len(scene.groups)):  # merged meshes (render.gpu_scene.GpuGroup)
+        for g in scene.shown_groups():  # merged meshes (render.gpu_scene.GpuGroup)
             vao = scene.group_ao_vao(prog, g) if baked else scene.group_vao(prog, g)
             scene.draw_group(vao, g, eye.view_projection, eye)
-        for mesh in scene.standalone:
+        for mesh in scene.shown_standalone():
             vao = scene.ao_vao(prog, mesh) if baked else scene.vao(prog, mesh)
             scene.draw(vao, mesh, eye.view_projection, eye)
         if not prepass:

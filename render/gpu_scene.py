@@ -241,6 +241,9 @@ class GpuScene:
         self._group_ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._group_ao_buffers: dict[int, moderngl.Buffer] = {}
         self.lod_bias = 0.0  # render.lod_bias: pixels a simplified level may stray (0: full)
+        # The sky is drawn this frame (sky.enabled): the panes standing for it are not
+        # (Material.sky_standin; ``shown``). Set by the renderer each frame.
+        self.daylight = False
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
@@ -440,6 +443,19 @@ class GpuScene:
         for sampler, tex in (mesh.maps or {}).items():
             if names is None or sampler in names:
                 bind_texture(prog, sampler, tex, optional=True)
+
+    def shown(self, material: Material) -> bool:
+        """Whether meshes of ``material`` are drawn this frame: all but a pane standing for the
+        sky while the sky itself is drawn (daylight on)."""
+        return not (self.daylight and material.sky_standin)
+
+    def shown_groups(self) -> list[int]:
+        """The merged groups drawn this frame (``shown``)."""
+        return [g for g, group in enumerate(self.groups) if self.shown(group.material)]
+
+    def shown_standalone(self) -> list[int]:
+        """The meshes drawn one by one this frame (``shown``)."""
+        return [i for i in self.standalone if self.shown(self.meshes[i].material)]
 
     def draw(
         self,

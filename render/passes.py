@@ -160,15 +160,18 @@ def _draw_meshes(
         # from the object table; the meshes left standalone are drawn one by one below.
         if scene.groups:
             scene.write_object_table(frame.levels)
-        for g, group in enumerate(scene.groups):
+        for g in scene.shown_groups():
+            group = scene.groups[g]
             if group.blended:  # the blend pass draws those, sorted
                 continue
             prog = variant({**material_defines(group), "OBJECT_TABLE": True})
             scene.bind_group_material(prog, g)
             drawn += scene.draw_group(scene.group_vao(prog, g), g, eye.view_projection, eye)
-        order = [i for i in scene.standalone if not scene.meshes[i].blended]
-    elif scene.groups:
-        scene.write_object_table(frame.levels)
+        order = [i for i in scene.shown_standalone() if not scene.meshes[i].blended]
+    else:
+        order = [i for i in order if scene.shown(scene.meshes[i].material)]
+        if scene.groups:
+            scene.write_object_table(frame.levels)
     k = 0
     while k < len(order):
         index = order[k]
@@ -428,13 +431,13 @@ class EmissivePass(RenderPass):
         pass's)."""
         meshes = [
             i
-            for i in scene.standalone
+            for i in scene.shown_standalone()
             if any(scene.meshes[i].material.emissive) and not scene.meshes[i].blended
         ]
         groups = [
             g
-            for g, group in enumerate(scene.groups)
-            if any(group.material.emissive) and not group.blended
+            for g in scene.shown_groups()
+            if any(scene.groups[g].material.emissive) and not scene.groups[g].blended
         ]
         return meshes, groups
 
@@ -613,13 +616,14 @@ class ObjectIdPass(RenderPass):
         for eye, (ids, _depth, fbo) in zip(frame.eyes, self._targets):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            for g, group in enumerate(scene.groups):  # the mesh index comes per vertex
+            for g in scene.shown_groups():  # the mesh index comes per vertex
+                group = scene.groups[g]
                 defines = {**alpha_mask_defines(group), "OBJECT_TABLE": True}
                 prog = self.shaders.program("geometry.vert.glsl", "ids.frag.glsl", defines)
                 set_uniforms(prog, {"u_view_projection": eye.view_projection})
                 scene.bind_group_material(prog, g, ("albedo",))
                 scene.draw_group(scene.group_vao(prog, g), g, eye.view_projection, eye)
-            for index in scene.standalone:
+            for index in scene.shown_standalone():
                 mesh = scene.meshes[index]
                 # Masked materials are cut out here too: a hole shows what lies behind.
                 prog = self.shaders.program(

@@ -350,9 +350,11 @@ class Renderer:
         )
         ambient, gradient = self.ambient_terms()
         est = self._ambient_estimate()
+        scene = self.gpu_scene or self._empty
+        scene.daylight = bool(settings.sky.enabled)  # the sky shows through its stand-ins
         return FrameContext(
             eyes=frame.eyes,
-            scene=self.gpu_scene or self._empty,
+            scene=scene,
             light_scale=1.0,  # lamps as the model gives them: Brightness is in the exposure
             ambient=ambient,
             ambient_gradient=gradient,

@@ -258,11 +258,16 @@ def sky_image(scene: Scene, settings: Settings, size: tuple[int, int] = SKY_EXPO
     return ((1.0 - t) * left + t * right).astype(np.float32)
 
 
-def merged_arrays(scene: Scene) -> dict[str, np.ndarray]:
-    """Every mesh as one triangle list with a material index per triangle."""
+def merged_arrays(scene: Scene, daylight: bool = False) -> dict[str, np.ndarray]:
+    """Every mesh as one triangle list with a material index per triangle; with ``daylight``
+    (the sky on) without the panes standing for the sky (``Material.sky_standin``), as our
+    frame draws it."""
     pos, nrm, uvs, col, idx, mat = [], [], [], [], [], []
     base = 0
     for m in scene.meshes:
+        standin = 0 <= m.material < len(scene.materials) and scene.materials[m.material].sky_standin
+        if daylight and standin:
+            continue
         n = m.positions.shape[0]
         pos.append(np.asarray(m.positions, np.float32))
         nrm.append(np.asarray(m.normals, np.float32))
@@ -370,8 +375,8 @@ def export(
 ) -> ReferenceJob:
     """The job for our left eye at ``size`` (one eye's width x height) seeing ``scene``;
     ``max_bounces`` limits Cycles' light paths (0: the direct light alone)."""
-    arrays = merged_arrays(scene)
     sky = sky_for(scene, settings)
+    arrays = merged_arrays(scene, daylight=sky is not None)
     if sky is not None:
         arrays["sky"] = sky_image(scene, settings)
     return ReferenceJob(
