@@ -140,6 +140,10 @@ class ShadowMaskPass(RenderPass):
         self.min_lights = 1
         self.slots = 4  # the slots the scene's shadowed lights could fill (scene_slots)
         self.overflow = False  # the scene has more shadowed lights than SHADOW_MASK_SLOTS
+        # The sun looked up over each sample's footprint (shadow_mask.frag.glsl sun_factor):
+        # a blind's slatted sun averages into an even patch instead of aliasing into blobs.
+        # False: its own soft edge (tests compare the two).
+        self.sun_footprint = True
 
     def configure(self, settings, scene, frame) -> bool:
         r = settings.render
@@ -168,14 +172,22 @@ class ShadowMaskPass(RenderPass):
         self._ensure(res.targets[0].size)
         lights = np.full(SHADOW_MASK_SLOTS, -1, np.int32)
         lights[: len(slots)] = slots
+        # The sun among them: its lookup over each sample's footprint (a compile-time variant:
+        # on llvmpipe the lamps' samples would pay for its code too).
+        known = frame.scene.light_list
+        sun = self.sun_footprint and any(
+            0 <= i < len(known) and known[i].kind == "directional" for i in slots
+        )
         prog = self.shaders.program(
             "fullscreen.vert.glsl",
             "shadow_mask.frag.glsl",
-            {"SHADOW_MASK_SLOTS_USED": self.slots},
+            {"SHADOW_MASK_SLOTS_USED": self.slots, "SUN_FOOTPRINT": sun},
         )
         frame.scene.light_buffer.bind_to_uniform_block(0)
         self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         for eye, tgt, own in zip(frame.eyes, res.targets, self.targets):
+            # half a sample's spacing: step / 2 pixels of 2 / (P11 H) radians, per metre
+            spread = self.step / (float(eye.projection[1, 1]) * tgt.size[1])
             own.fbo.use()
             bind_texture(prog, "gb_depth", tgt.depth)
             bind_texture(prog, "gb_normal", tgt.normal)
@@ -188,6 +200,8 @@ class ShadowMaskPass(RenderPass):
                     "u_mask_depth": depth_terms(eye),
                     "u_mask_step": self.step,
                 },
+                # the sun's footprint (shadow_mask.frag.glsl sun_footprint), where a sun is
+                optional={"u_view_projection": eye.view_projection, "u_mask_spread": spread},
             )
             self.fullscreen(prog)
             self.samples += own.size[0] * own.size[1]

@@ -626,3 +626,39 @@ def test_a_skirting_top_seen_across_the_room_stays_in_the_shade(detail):
     assert keep.sum() > 40  # the board's top, seen at dozens of pixels
     ratio = img[r[keep], c[keep]] / off[r[keep], c[keep]]
     assert ratio.max() < 0.05, (float(ratio.max()), float((ratio > 0.05).mean()))
+
+
+def test_the_sun_through_the_blinds_is_an_even_patch_seen_across_the_room():
+    """Seen from across the showroom, the blinds' stripes on the floor are finer than a pixel
+    (a path tracer shows an even patch) and far finer than the shadow mask's samples: one
+    lookup per sample aliased them into blobs. Looked up over each sample's footprint the
+    patch is even (less than half as uneven from pixel to pixel), with the light the
+    per-pixel picture has."""
+    s = _sun_alone()
+    scene, _ = _sunlit_showroom()
+    scene.spawn = Viewpoint(
+        (2.5, 1.6, 0.5), 80.0, -10.0
+    )  # the window view (docs/reference_flip.md)
+    with OffscreenHost(1280, 720, s) as host:
+        full, _ = hdr(host, scene, "soft", render__shadow_detail="full")
+        pictures = {}
+        for footprint in (True, False):
+            host.renderer.shadow_mask.sun_footprint = footprint
+            pictures[footprint], _ = hdr(host, scene, "soft", render__shadow_detail="quarter")
+            assert host.renderer.shadow_mask.step == 4
+        assert not host.renderer.errors
+    # The patch on the floor below the window: where the per-pixel picture, blurred, is lit.
+    floor = np.zeros(full.shape, bool)
+    floor[375:430, 130:330] = True
+    k = np.ones(9) / 9.0
+    blurred = np.apply_along_axis(lambda r: np.convolve(r, k, "same"), 1, full)
+    patch = floor & (blurred > 0.25 * blurred[floor].max())
+    assert patch.sum() > 500
+
+    def unevenness(img: np.ndarray) -> float:  # pixel to pixel, along the rows, in the patch
+        step = np.abs(np.diff(img, axis=1))[patch[:, 1:] & patch[:, :-1]]
+        return float(step.mean() / img[patch].mean())
+
+    assert unevenness(pictures[True]) < 0.5 * unevenness(pictures[False])
+    # The same light, spread over the footprint: the floor round the patch as a whole.
+    assert pictures[True][floor].mean() == pytest.approx(full[floor].mean(), rel=0.1)

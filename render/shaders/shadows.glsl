@@ -25,7 +25,8 @@ float spot_cone(int i, vec3 L) {
     return t * t;
 }
 
-// Soft shadows' taps: a Poisson disk of radius 1 (the first SHADOW_TAPS used).
+// Soft shadows' taps: a Poisson disk of radius 1 (the first SHADOW_TAPS used; all eight over
+// the shadow mask's footprint).
 const int SHADOW_TAPS = 4;
 const vec2 POISSON[8] = vec2[8](
     vec2(-0.613, 0.617), vec2(0.645, 0.493), vec2(0.421, -0.689), vec2(-0.299, -0.792),
@@ -44,9 +45,11 @@ float shadow_tap(vec4 c, vec4 rect, float t) {
 // 1 lit, 0 in shadow. P is moved along its normal by about a texel of the map at P (normal
 // offset: no acne on flat floors), the depth pass adds a slope-scaled offset. Soft: taps of a
 // rotated Poisson disk on the receiving surface itself (so a slanted floor does not shadow
-// itself), each a bilinear comparison. SHADOW_FILTER (0 off, 1 hard, 2 soft) is a compile-time
-// variant (render.shadows sets it): on llvmpipe a branch on a uniform costs both ways.
-float shadow_factor(int i, vec3 P, vec3 N, vec3 L, float dist) {
+// itself), each a bilinear comparison, the disk at least ``spread`` wide (metres; the shadow
+// mask's footprint, shadow_mask.frag.glsl). SHADOW_FILTER (0 off, 1 hard, 2 soft) is a
+// compile-time variant (render.shadows sets it): on llvmpipe a branch on a uniform costs both
+// ways. ``taps``: a constant at every call (the loop unrolls once the call is inlined).
+float shadow_lookup(int i, vec3 P, vec3 N, vec3 L, float dist, float spread, int taps) {
 #if SHADOW_FILTER == 0
     return 1.0;
 #else
@@ -75,15 +78,20 @@ float shadow_factor(int i, vec3 P, vec3 N, vec3 L, float dist) {
     // Interleaved gradient noise: a fixed rotation per surface point, no pattern in the edge.
     float angle = 6.2831853 * fract(52.9829189 * fract(dot(P.xz * 173.0 + P.y * 97.0,
                                                               vec2(0.06711056, 0.00583715))));
-    float r = max(texel.w, 1.5 * metres);
+    float r = max(max(texel.w, 1.5 * metres), spread);
     // The map is linear in the world point: project the disk's two axes once.
     vec4 cu = M * vec4((T * cos(angle) + B * sin(angle)) * r, 0.0);
     vec4 cv = M * vec4((B * cos(angle) - T * sin(angle)) * r, 0.0);
     float sum = 0.0;
-    for (int k = 0; k < SHADOW_TAPS; ++k) {
+    for (int k = 0; k < taps; ++k) {
         sum += shadow_tap(c0 + cu * POISSON[k].x + cv * POISSON[k].y, rect, texel.x);
     }
-    return sum / float(SHADOW_TAPS);
+    return sum / float(taps);
 #endif
 #endif
+}
+
+// The light's own shadow factor (its soft edge, SHADOW_TAPS taps).
+float shadow_factor(int i, vec3 P, vec3 N, vec3 L, float dist) {
+    return shadow_lookup(i, P, N, L, dist, 0.0, SHADOW_TAPS);
 }
