@@ -474,8 +474,9 @@ class Renderer:
     def _fold_cps_filter(self, enabled: list[RenderPass], scene: GpuScene) -> None:
         """Fold the CPS filter into the present pass (``fold_cps_filter``) when no pass between
         them reads the eyes' colour or writes it other than by adding light: the present pass
-        then reconstructs each pixel as it tone-maps it, one full-screen pass fewer (the
-        filter's own pass had cost 9-13 ms at 2 x 640x720 in the corridor). Reflections, the
+        then reconstructs each pixel as it tone-maps it, one full-screen pass fewer (about 2 ms
+        of the corridor's 115 at 2 x 640x720, nothing at the governor's walking scale: the
+        reconstruction's own work moves with it, docs/governor_study.md). Reflections, the
         sky, glass, the temporal filter, refinement and automatic exposure read or paint over
         the colour, so with any of them the filter keeps its pass."""
         filt = self._by_name.get("cps_filter")
@@ -495,7 +496,8 @@ class Renderer:
         touching = [p for p in between if "hdr" in (*p.reads, *p.optional_reads, *p.writes)]
         if not all(p.adds_to_hdr for p in touching):
             return
-        adds = any(p.adds_light(scene) for p in touching if isinstance(p, EmissivePass))
+        # A pass that adds light clears the colour first (the emissive pass: when it draws).
+        adds = any(not isinstance(p, EmissivePass) or p.adds_light(scene) for p in touching)
         filt.folded, filt.clears = True, adds
         present.fold = (filt, adds)
 
