@@ -57,26 +57,22 @@ bool on_surface(ivec2 q, vec3 P, vec3 N) {
 // The sun's factor over a sample's footprint on the surface. Through a venetian blind its
 // stripes on a floor seen across the room are finer than the samples at every 4th pixel,
 // finer even than a pixel (a path tracer's pixels average them into an even patch), and one
-// lookup aliased them into blobs. Where four taps over the footprint (half the samples'
-// spacing on the surface, stretched as the surface turns from the eye) disagree with the
-// sun's own soft edge, the footprint's eight taps are the factor, if the eye sees the same
-// surface (its plane and facing) at the footprint's four ends: not near an edge, where the
-// widened disk would reach behind a wall (outside, in the sun), past a table's edge or off
-// a skirting board's narrow top. Elsewhere (most of a room: wholly in the sun or out of it)
-// the two agree, and the factor is the sun's own.
+// lookup aliased them into blobs. The factor is eight taps over the footprint (half the
+// samples' spacing on the surface, stretched as the surface turns from the eye) where the
+// eye sees the same surface (its plane and facing) at the footprint's four ends; near an
+// edge, where the widened disk would reach behind a wall (outside, in the sun), past a
+// table's edge or off a skirting board's narrow top, it is the sun's own soft edge.
 float sun_factor(int i, vec3 P, vec3 N, vec3 L, float view_dist, vec3 to_eye) {
     float r = u_mask_spread * view_dist / sqrt(max(abs(dot(N, to_eye)), 0.1));
     vec3 T = normalize(cross(N, abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0)));
     vec3 B = cross(N, T);
     bool inside = true;
-#ifndef NO_EDGE_CHECK
     for (int k = 0; k < 4; ++k) {
         vec3 W = P + ((k & 1) == 0 ? T : B) * ((k & 2) == 0 ? r : -r);
         vec4 c = u_view_projection * vec4(W, 1.0);
         vec2 uv = c.xy / max(c.w, 1e-4) * 0.5 + 0.5;
         inside = inside && c.w > 1e-4 && on_surface(ivec2(uv * vec2(u_size)), P, N);
     }
-#endif
     return inside ? shadow_lookup(i, P, N, L, 0.0, r, 8) : shadow_factor(i, P, N, L, 0.0);
 }
 #endif
