@@ -409,7 +409,10 @@ class AmbientProbe:
         return met[met >= 0]
 
     def estimate(
-        self, lights: Sequence[Light], sky_sh: np.ndarray | None = None
+        self,
+        lights: Sequence[Light],
+        sky_sh: np.ndarray | None = None,
+        beside_photons: bool = False,
     ) -> AmbientEstimate:
         """The estimate under ``lights``: each face takes the lamps' light from its own side,
         the bounces go along the probe's paths, and the indirect light is averaged over the
@@ -417,7 +420,14 @@ class AmbientProbe:
 
         ``sky_sh``: the sky's light (``app.sky.SkyBake.sh``, light leaving a white surface per
         normal, cd/m2) with daylight on; a face then also takes pi SH(n) times the share of
-        its rays that leave the scene (1 - c), and that light bounces as the lamps' does."""
+        its rays that leave the scene (1 - c), and that light bounces as the lamps' does.
+
+        ``beside_photons``: the even light beside a photon map, which carries the bounces of
+        the drawn lamps', the sun's and the sky's light: only what it leaves out, the lamps'
+        light past their range and the glowing surfaces' light, and their bounces."""
+        if beside_photons:
+            lights = [lt for lt in lights if lt.kind != "directional"]
+            sky_sh = None
         # With daylight on, a glowing pane stands for the sky beyond it, whose light through
         # the openings is counted instead (and a lamp's glow is small beside daylight).
         glowing = len(self.points) > 0 and bool(self.emitted_rgb.any()) and sky_sh is None
@@ -440,6 +450,8 @@ class AmbientProbe:
                 self.points, self.normal * side, lamps, self.caster, self.eps, True, drawn
             )
             beyond_rgb[k::2] = np.maximum(rgb - drawn, 0.0)
+            if beside_photons:  # the photon map carries the drawn light's bounces
+                rgb = beyond_rgb[k::2].copy()
             e = rgb @ LUMA
             lamps_only[k::2], lamps_only_rgb[k::2] = e, rgb
             if sky_sh is not None:

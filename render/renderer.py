@@ -413,12 +413,18 @@ class Renderer:
         if not r.ambient_estimate or scene is None:
             return None
         photons = self._by_name.get("photons")  # a renderer may run without the pass
-        if isinstance(photons, PhotonPass) and photons.photons is not None:
-            if deferred(self.settings):
-                return None
+        # Beside a photon map, only the light it leaves out (AmbientProbe.estimate); in
+        # daylight that is next to nothing, and the fixed even light stays (as before).
+        beside = (
+            isinstance(photons, PhotonPass)
+            and photons.photons is not None
+            and deferred(self.settings)
+        )
+        if beside and self.settings.sky.enabled:
+            return None
         lights = self.frame_lights()
         sky = scene_sky(self.settings.sky, scene.scene) if self.settings.sky.enabled else None
-        key = (list(lights), sky_key(sky) if sky is not None else None)
+        key = (list(lights), sky_key(sky) if sky is not None else None, beside)
         cached = self._ambient
         if cached is None or cached[0] is not scene or cached[1] != key:
             if self._ambient_probe is None or self._ambient_probe[0] is not scene:
@@ -431,7 +437,7 @@ class Renderer:
                 if sky is not None and isinstance(daylight, DaylightPass)
                 else None
             )
-            value = self._ambient_probe[1].estimate(lights, sh)
+            value = self._ambient_probe[1].estimate(lights, sh, beside_photons=beside)
             self._ambient = cached = (scene, key, value)
         return cached[2]
 

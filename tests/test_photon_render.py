@@ -277,3 +277,26 @@ def test_grid_too_large_is_reported_not_drawn_wrong():
         assert "cells" in (stats.get("error") or "")
         assert host.renderer.photons.gmap is None
         assert not host.renderer.errors
+
+
+def test_beside_the_photon_map_the_even_light_is_only_what_it_leaves_out():
+    """With bounced light from the photon map, the even light no longer adds the fixed level
+    (0.06) on top of it (a room lit twice: the bathroom 1.1-1.4 times Cycles' brightness):
+    it carries only what the photon map leaves out, here the lamp's light past its range."""
+    levels = {}
+    for range_m in (12.0, 2.0):
+        room = box_room()
+        lamp = room.lights[0]
+        room.lights = [PointLight(lamp.position, lamp.color, lamp.intensity, range_m)]
+        with OffscreenHost(W, H, photon_settings(photons__indirect="cache")) as host:
+            host.set_scene(room)
+            host.draw(eye_frame(host))
+            with host.ctx:
+                assert host.renderer.photons.photons is not None  # the photon map is drawn
+                levels[range_m], _ = host.renderer.ambient_terms()
+            assert not host.renderer.errors
+    fixed = Settings().render.ambient
+    # The whole room within the lamp's 12 m: next to nothing is left to the even light.
+    assert 0.0 <= levels[12.0] < 0.05 * fixed
+    # Past a 2 m range: that light, bounced round the room, is the even light's.
+    assert levels[2.0] > 10.0 * levels[12.0]
