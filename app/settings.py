@@ -192,7 +192,8 @@ class RenderSettings:
     ambient: float = _opt(
         0.06,
         "Light that reaches every surface evenly, so shadows are never fully black. Used "
-        "when the even light is not worked out from the lamps, and with bounced light on.",
+        "when the even light is not worked out from the lamps, and in daylight with bounced "
+        "light on (lamp-lit, the even light beside bounced light is worked out).",
         label="Ambient light",
         lo=0.0,
         hi=4.0,
