@@ -247,6 +247,11 @@ class RenderPass(ABC):
         """Whether this pass runs this frame (and its variant); the pass's own rule."""
         return True
 
+    def adds_light(self, scene: GpuScene) -> bool:
+        """A pass that adds to "hdr" (``adds_to_hdr``): whether it adds anything this frame
+        (the colour under it must then be cleared when the CPS filter folds past it)."""
+        return True
+
     def run(self, frame: FrameContext) -> None:
         if not self.enabled:
             self.last_ms = 0.0

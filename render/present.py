@@ -66,6 +66,26 @@ class PresentPass(RenderPass):
         curve = settings.render.tone_mapping
         return {"TONE_ACES": curve == "aces", "TONE_AGX": curve == "agx"}
 
+    def fold_filter(self, enabled: list[RenderPass], scene, allowed: bool) -> None:
+        """Fold the CPS filter into this pass (``allowed``: ``Renderer.fold_cps_filter``)
+        when no pass between them reads the eyes' colour or writes it other than by adding
+        light: each pixel is then reconstructed as it is tone-mapped, one full-screen pass
+        fewer (about 2 ms of the corridor's 115 at 2 x 640x720, nothing at the governor's
+        walking scale: the reconstruction's own work moves with it, docs/governor_study.md).
+        Reflections, the sky, glass, the temporal filter, refinement and automatic exposure
+        read or paint over the colour, so with any of them the filter keeps its pass."""
+        self.fold = None
+        filt = next((p for p in enabled if isinstance(p, CpsFilterPass)), None)
+        if not allowed or filt is None or self not in enabled or filt.temporal:
+            return
+        between = enabled[enabled.index(filt) + 1 : enabled.index(self)]
+        touching = [p for p in between if "hdr" in (*p.reads, *p.optional_reads, *p.writes)]
+        if not all(p.adds_to_hdr for p in touching):
+            return
+        adds = any(p.adds_light(scene) for p in touching)  # then cleared first (the glow)
+        filt.folded, filt.clears = True, adds
+        self.fold = (filt, adds)
+
     def configure(self, settings, scene, frame) -> bool:
         self.visualize = settings.cps.visualize
         self.tone = self.defines(settings)

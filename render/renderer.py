@@ -17,7 +17,7 @@ from typing import Generic, TypeVar, cast
 import moderngl
 import numpy as np
 
-from app.ambient import AmbientEstimate, AmbientProbe, probe_for
+from app.ambient import AmbientEstimate
 from app.camera import jittered
 from app.frame import FrameInput
 from app.governor import (
@@ -29,14 +29,13 @@ from app.governor import (
 )
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
-from app.raycast import RayCaster
 from app.refine import refine_on
 from app.scene import Light, Scene
 from app.settings import Settings
 from app.sky import scene_sky, sun_light
 from app.tcr import finest_per_texture
 from render.ab_split import ABSplitPass, SplitFrame
-from render.ambient_field import GpuAmbientField
+from render.ambient_source import AmbientSource
 from render.ao import AmbientOcclusionPass
 from render.constants import CPS_LEVELS
 from render.cps import (
@@ -191,15 +190,13 @@ class Renderer:
         # mesh, as before (tests compare the two, debugging). Read by set_scene.
         self.merge_meshes = True
         # The CPS filter folded into the present pass where nothing between them needs the
-        # pixels (_fold_cps_filter); False: always its own pass (tests compare the two).
+        # pixels (PresentPass.fold_filter); False: always its own pass (tests compare them).
         self.fold_cps_filter = True
         self._sun: Light | None = None
         self._sun_key: tuple | None = None
         self._synced: tuple[GpuScene, list[Light]] | None = None  # the lights last uploaded
         # The estimated ambient term for a scene and its lights, and the scene's probe.
-        self._ambient: tuple[GpuScene, tuple, AmbientEstimate] | None = None
-        self._ambient_probe: tuple[GpuScene, AmbientProbe] | None = None
-        self._field: GpuAmbientField | None = None  # the estimate's field, uploaded
+        self._ambient = AmbientSource(ctx)  # the estimate and its field, kept
         self.targets: list[EyeTargets] = []
         self._eye_targets = BySize(
             lambda size: [EyeTargets(ctx, *size) for _ in range(2)], release_all
@@ -359,7 +356,7 @@ class Renderer:
             ambient=ambient,
             ambient_gradient=gradient,
             occluder_return=-1.0 if est is None else est.occluder_return,
-            ambient_field=self._field_for(est, settings),
+            ambient_field=self._ambient.field_for(est, settings),
             exposure=self._exposure_scale * r.exposure,
             out=out,
             out_origin=origin,
@@ -377,23 +374,11 @@ class Renderer:
             normal_maps=bool(r.normal_maps),
         )
 
-    def _field_for(self, est: AmbientEstimate | None, settings: Settings) -> GpuAmbientField | None:
-        """The estimate's even light by place on the GPU (``render.ambient_by_place``),
-        uploaded once per estimate."""
-        field = est.by_place if est is not None and settings.render.ambient_by_place else None
-        if field is None:
-            return None
-        if self._field is None or self._field.field is not field:
-            if self._field is not None:
-                self._field.release()
-            self._field = GpuAmbientField(self.ctx, field)
-        return self._field
-
     def ambient_term(self) -> float:
         """The frame's ambient term: estimated from the frame's lights and the sky
         (``app.ambient``, once per scene, set of lights and sky) with
-        ``render.ambient_estimate``, else ``render.ambient``; a
-        photon map in use brings the bounced light itself, so it keeps ``render.ambient``.
+        ``render.ambient_estimate``, else ``render.ambient``; beside a photon map in use, the
+        estimate of only what the map leaves out (lamp-lit), or ``render.ambient`` (daylight).
         With the estimate this is its mean; the shaders take it by the way a surface faces
         (:meth:`ambient_terms`)."""
         est = self._ambient_estimate()
@@ -422,24 +407,18 @@ class Renderer:
         )
         if beside and self.settings.sky.enabled:
             return None
-        lights = self.frame_lights()
         sky = scene_sky(self.settings.sky, scene.scene) if self.settings.sky.enabled else None
-        key = (list(lights), sky_key(sky) if sky is not None else None, beside)
-        cached = self._ambient
-        if cached is None or cached[0] is not scene or cached[1] != key:
-            if self._ambient_probe is None or self._ambient_probe[0] is not scene:
-                own = scene.scene.ray_caster
-                caster = own if isinstance(own, RayCaster) else None
-                self._ambient_probe = (scene, probe_for(scene.scene, caster))
-            daylight = self._by_name.get("daylight")
-            sh = (
+        daylight = self._by_name.get("daylight")
+
+        def sky_sh():
+            return (
                 daylight.update_sky(sky).sh
                 if sky is not None and isinstance(daylight, DaylightPass)
                 else None
             )
-            value = self._ambient_probe[1].estimate(lights, sh, beside_photons=beside)
-            self._ambient = cached = (scene, key, value)
-        return cached[2]
+
+        key = sky_key(sky) if sky is not None else None
+        return self._ambient.estimate(scene, self.frame_lights(), key, sky_sh, beside)
 
     def step_exposure(self) -> None:
         """This frame's exposure: the fixed EV, or the last metering adapted by frame_dt."""
@@ -474,38 +453,9 @@ class Renderer:
         if key not in self._checked:
             check_graph(enabled)
             self._checked.add(key)
-        self._fold_cps_filter(enabled, ctx.scene)
+        if isinstance(self._by_name.get("present"), PresentPass):
+            self.present.fold_filter(enabled, ctx.scene, self.fold_cps_filter)
         return enabled
-
-    def _fold_cps_filter(self, enabled: list[RenderPass], scene: GpuScene) -> None:
-        """Fold the CPS filter into the present pass (``fold_cps_filter``) when no pass between
-        them reads the eyes' colour or writes it other than by adding light: the present pass
-        then reconstructs each pixel as it tone-maps it, one full-screen pass fewer (about 2 ms
-        of the corridor's 115 at 2 x 640x720, nothing at the governor's walking scale: the
-        reconstruction's own work moves with it, docs/governor_study.md). Reflections, the
-        sky, glass, the temporal filter, refinement and automatic exposure read or paint over
-        the colour, so with any of them the filter keeps its pass."""
-        filt = self._by_name.get("cps_filter")
-        present = self._by_name.get("present")
-        if not isinstance(present, PresentPass):
-            return
-        present.fold = None
-        if not (
-            self.fold_cps_filter
-            and isinstance(filt, CpsFilterPass)
-            and filt in enabled
-            and present in enabled
-            and not filt.temporal
-        ):
-            return
-        between = enabled[enabled.index(filt) + 1 : enabled.index(present)]
-        touching = [p for p in between if "hdr" in (*p.reads, *p.optional_reads, *p.writes)]
-        if not all(p.adds_to_hdr for p in touching):
-            return
-        # A pass that adds light clears the colour first (the emissive pass: when it draws).
-        adds = any(not isinstance(p, EmissivePass) or p.adds_light(scene) for p in touching)
-        filt.folded, filt.clears = True, adds
-        present.fold = (filt, adds)
 
     def render(
         self,
@@ -833,6 +783,5 @@ class Renderer:
         if self.gpu_scene is not None:
             self.gpu_scene.release()
         self._empty.release()
-        if self._field is not None:
-            self._field.release()
+        self._ambient.release()
         self.shaders.release()
