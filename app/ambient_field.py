@@ -165,36 +165,20 @@ class FieldLayout:
 
         pts = np.asarray(points, np.float64).reshape(-1, 3)
         nrm = np.asarray(facing, np.float64).reshape(-1, 3)
-        c = float(cell)
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        while True:  # grow the cell until the grid fits (a tent's reach, SPREAD cells, each side)
-            dims = np.maximum(np.ceil((hi - lo) / c + 2.0 * SPREAD).astype(np.int64), 1)
-            if int(np.prod(dims)) <= MAX_CELLS:
-                break
-            c *= 1.25
-        origin = 0.5 * (lo + hi) - 0.5 * dims * c
+        origin, c, dims = grid_around(pts, float(cell), SPREAD, MAX_CELLS)
         flat_n = int(np.prod(dims))
-        h = (pts - origin) / c - 0.5  # in cell-centre units
-        base = np.floor(h).astype(np.int64)
-        reach = int(math.ceil(SPREAD))
-        steps = np.arange(-reach + 1, reach + 1)
-        offsets = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
-        idx = base[:, None, :] + offsets[None, :, :]  # (F, O, 3) the cells each face reaches
-        tent = np.prod(np.maximum(0.0, 1.0 - np.abs(h[:, None, :] - idx) / SPREAD), axis=2)
-        tent *= ((idx >= 0) & (idx < dims)).all(axis=2)
-        flat = (idx[..., 2] * dims[1] + idx[..., 1]) * dims[0] + idx[..., 0]
-        flat = np.clip(flat, 0, flat_n - 1)  # outside the grid: weight 0 anyway
+        flat, tent = tents(pts, origin, c, dims, SPREAD)
         share = nrm * nrm  # by the squared components (they sum to 1)
         bucket_of = np.where(nrm >= 0.0, [0, 2, 4], [1, 3, 5])  # (F, 3)
         keys = (bucket_of[:, :, None] * flat_n + flat[:, None, :]).ravel()  # (F, 3, O)
         w = (share[:, :, None] * tent[:, None, :]).ravel()
-        faces = np.repeat(np.arange(len(pts)), 3 * len(offsets))
+        faces = np.repeat(np.arange(len(pts)), 3 * flat.shape[1])
         shape = (BUCKETS * flat_n, len(pts))
         splat = csr_matrix((w, (keys, faces)), shape=shape)  # duplicates summed
         weight = np.bincount(keys, w, BUCKETS * flat_n).reshape(BUCKETS, flat_n)
-        cells_of = np.repeat(np.arange(len(pts)), len(offsets))
-        tents = csr_matrix((tent.ravel(), (flat.ravel(), cells_of)), shape=(flat_n, len(pts)))
-        return cls(origin, c, dims, splat, tents, weight)
+        cells_of = np.repeat(np.arange(len(pts)), flat.shape[1])
+        by_cell = csr_matrix((tent.ravel(), (flat.ravel(), cells_of)), shape=(flat_n, len(pts)))
+        return cls(origin, c, dims, splat, by_cell, weight)
 
     def field(self, values: np.ndarray, levels: np.ndarray, chroma: np.ndarray) -> AmbientField:
         """The field of this layout's faces with bounce light ``values`` (F,), finite and not
@@ -215,6 +199,39 @@ class FieldLayout:
         colour = colour.reshape(int(d[2]), int(d[1]), int(d[0]), 3).astype(np.float32)
         shape = (int(d[0]), int(d[1]), int(d[2]))
         return AmbientField(self.origin, self.cell, shape, out, values.shape[0], colour)
+
+
+def grid_around(
+    pts: np.ndarray, cell: float, spread: float, max_cells: int
+) -> tuple[np.ndarray, float, np.ndarray]:
+    """A grid over finite points ``pts`` with room for a tent ``spread`` cells wide each side:
+    its origin (the corner of cell 0), its cell (``cell`` metres, grown until the grid has at
+    most ``max_cells`` cells) and its dims (3,) int64 along x, y, z."""
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    c = cell
+    while True:
+        dims = np.maximum(np.ceil((hi - lo) / c + 2.0 * spread).astype(np.int64), 1)
+        if int(np.prod(dims)) <= max_cells:
+            break
+        c *= 1.25
+    return 0.5 * (lo + hi) - 0.5 * dims * c, c, dims
+
+
+def tents(
+    pts: np.ndarray, origin: np.ndarray, cell: float, dims: np.ndarray, spread: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The cells each point's tent (``spread`` cells each way, separable) reaches: their flat
+    index (z, y, x order) and the tent's weight there, both (P, O); 0 outside the grid."""
+    h = (pts - origin) / cell - 0.5  # in cell-centre units
+    base = np.floor(h).astype(np.int64)
+    reach = int(math.ceil(spread))
+    steps = np.arange(-reach + 1, reach + 1)
+    offsets = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
+    idx = base[:, None, :] + offsets[None, :, :]  # (P, O, 3)
+    tent = np.prod(np.maximum(0.0, 1.0 - np.abs(h[:, None, :] - idx) / spread), axis=2)
+    tent *= ((idx >= 0) & (idx < dims)).all(axis=2)
+    flat = (idx[..., 2] * dims[1] + idx[..., 1]) * dims[0] + idx[..., 0]
+    return np.clip(flat, 0, int(np.prod(dims)) - 1), tent
 
 
 def usable(points: np.ndarray, facing: np.ndarray) -> np.ndarray:

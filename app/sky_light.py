@@ -30,15 +30,14 @@ neighbours' light.
 The work is capped (``max_rays``): a big interior samples a subset of its vertices' sides,
 each with a chance in proportion to its surface (the walls, floor and ceiling keep all theirs),
 and the spread gives the others their value. The bake runs once per scene, on a background
-thread (:class:`VisibilityBake`), and the renderer uploads the result
-when it is ready; rays are cast through :class:`app.raycast.RayCaster` (embree).
+thread (``app.sky_field.VisibilityBake``, with the share by place), and the renderer uploads the
+result when it is ready; rays are cast through :class:`app.raycast.RayCaster` (embree).
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import threading
 from collections.abc import Callable
 
 import numpy as np
@@ -154,7 +153,7 @@ def sky_visibility(
     wanted = side_pos.shape[0]
     if rays is None:
         rays = int(np.clip(max_rays // max(wanted, 1), RAYS_PER_SIDE, MAX_RAYS_PER_SIDE))
-    portal = _portal(scene, caster, tri, seed) if rays >= 2 else None
+    portal = sky_portal(scene, caster, tri, seed) if rays >= 2 else None
     n_portal = int(round(rays * PORTAL_SHARE)) if portal is not None else 0
     n_cos = max(1, rays - n_portal)
     per_side = n_cos + n_portal
@@ -171,7 +170,7 @@ def sky_visibility(
         if cancelled is not None and cancelled():
             return None
         rows = sampled[start : start + per_chunk]
-        share, shut_in = _seen_share(
+        share, shut_in, _ = seen_share(
             caster, side_pos[rows], side_nrm[rows], n_cos, n_portal, portal, rng
         )
         seen[start : start + len(rows)] = share
@@ -331,7 +330,7 @@ def _inside_points(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
     return pos + move * scale
 
 
-def _seen_share(
+def seen_share(
     caster: RayCaster,
     o: np.ndarray,
     n: np.ndarray,
@@ -339,10 +338,13 @@ def _seen_share(
     n_portal: int,
     portal: Portal | None,
     rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The share of the sky seen from points ``o`` facing ``n`` (k,), by ``n_cos`` cosine
-    rays and ``n_portal`` rays aimed at the portal, weighed by the balance heuristic; and
-    whether each point is covered (its cosine rays end within COVER_M), (k,) bool."""
+    rays and ``n_portal`` rays aimed at the portal, weighed by the balance heuristic; whether
+    each point is covered (its cosine rays end within COVER_M), (k,) bool; and the share of
+    each point's escaping cosine rays that left through the portal, (k,) (1 where none
+    escaped or there is no portal; 0 for a point outside the portal's box: a model's outside).
+    """
     k = o.shape[0]
     dirs = cosine_directions(n, n_cos, rng)
     if portal is not None and n_portal:
@@ -357,20 +359,25 @@ def _seen_share(
     covered = (dist[:, :n_cos] < COVER_M).mean(axis=1) >= COVERED_SHARE
     cos = np.einsum("kj,kij->ki", n, dirs)
     out = np.isinf(dist) & (cos > 0.0)
-    if portal is None or not n_portal:
-        return out.mean(axis=1), covered
+    if portal is None:
+        return out.mean(axis=1), covered, np.ones(k)
     inside = np.all((o > portal.lo) & (o < portal.hi), axis=1)
     out[~inside, n_cos:] = False  # outside the box: the cosine rays alone
     pdf = np.zeros((k, per_side))
     esc = out & inside[:, None]
     pdf[esc] = portal.open_density(origins[esc.ravel()], flat[esc.ravel()])
+    escaped = out[:, :n_cos].sum(axis=1)
+    through = np.where(inside, (pdf[:, :n_cos] > 0.0).sum(axis=1) / np.maximum(escaped, 1), 0.0)
+    through = np.where(escaped > 0, through, 1.0)
+    if not n_portal:
+        return out.mean(axis=1), covered, through
     n_p = np.where(inside, n_portal, 0)[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         share = cos / (n_cos * cos + n_p * math.pi * pdf)
-    return np.where(out, share, 0.0).sum(axis=1), covered
+    return np.where(out, share, 0.0).sum(axis=1), covered, through
 
 
-def _portal(scene: Scene, caster: RayCaster, tri: np.ndarray, seed: int) -> Portal | None:
+def sky_portal(scene: Scene, caster: RayCaster, tri: np.ndarray, seed: int) -> Portal | None:
     """The sky's portal seen from the spawn, or None (a closed room, the spawn outside the
     model, no geometry)."""
     box = scene_box(tri)
@@ -380,37 +387,3 @@ def _portal(scene: Scene, caster: RayCaster, tri: np.ndarray, seed: int) -> Port
     if not portal.inside or not portal.open.any() or portal.total_area <= 0.0:
         return None
     return portal
-
-
-class VisibilityBake:
-    """:func:`sky_visibility` for one scene on a background thread; ``result`` when done."""
-
-    def __init__(self, scene: Scene, **options) -> None:
-        self.scene = scene
-        self.result: list[np.ndarray] | None = None
-        self.error: str | None = None
-        self._cancel = threading.Event()
-        self._done = threading.Event()
-        self._thread = threading.Thread(
-            target=self._run, kwargs=options, name="sky-visibility", daemon=True
-        )
-        self._thread.start()
-
-    def _run(self, **options) -> None:
-        try:
-            self.result = sky_visibility(self.scene, cancelled=self._cancel.is_set, **options)
-        except Exception as exc:  # noqa: BLE001 - a failed bake leaves the sky light out
-            self.error = f"{type(exc).__name__}: {exc}"
-            log.warning("sky visibility could not be computed: %s", self.error)
-        finally:
-            self._done.set()
-
-    @property
-    def done(self) -> bool:
-        return self._done.is_set()
-
-    def wait(self, timeout: float | None = None) -> bool:
-        return self._done.wait(timeout)
-
-    def cancel(self) -> None:
-        self._cancel.set()

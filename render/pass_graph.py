@@ -177,7 +177,7 @@ def uniform(prog: moderngl.Program | moderngl.ComputeShader, name: str) -> moder
 def bind_texture(
     prog: moderngl.Program | moderngl.ComputeShader,
     name: str,
-    tex: moderngl.Texture,
+    tex: moderngl.Texture | moderngl.Texture3D,
     optional: bool = False,
 ) -> bool:
     """Bind ``tex`` to TEXTURE_UNITS[name] and point sampler ``u_<name>`` at it. ``optional``:

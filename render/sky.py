@@ -1,12 +1,12 @@
 """Daylight on the GPU: the baked sky, the sun's uniforms, the sky visibility and the sky behind.
 
 Two passes. ``DaylightPass`` (first in the frame) re-bakes the sky on the CPU only when a
-``sky.*`` setting changes (``app.sky.bake_sky``: about 15 ms), starts the scene's sky
-visibility bake once per scene (``app.sky_light.VisibilityBake``, a background thread) and
-uploads it when ready, and hands the lighting a :class:`SkyFrame` as the ``sky`` resource:
-with it the lighting compiles its ``SKY`` variant (sky.glsl: the sun and the sky's diffuse
-light). ``SkyPass`` draws the sky where no geometry covers a pixel, after the opaque lighting,
-so windows open onto it (glass is drawn after it).
+``sky.*`` setting changes (``app.sky.bake_sky``: about 15 ms), starts the scene's sky visibility
+bake once per scene (``app.sky_field.VisibilityBake``, a background thread: the share per vertex,
+then by place) and uploads each part when it is ready, and hands the lighting a
+:class:`SkyFrame` as the ``sky`` resource: with it the lighting compiles its ``SKY`` variant
+(sky.glsl: the sun and the sky's diffuse light). ``SkyPass`` draws the sky where no geometry
+covers a pixel, after the opaque lighting, so windows open onto it (glass is drawn after it).
 """
 
 from __future__ import annotations
@@ -21,10 +21,16 @@ import numpy as np
 from app.scene import Light
 from app.settings import SkySettings
 from app.sky import SkyBake, bake_sky, north_east, scene_sky
-from app.sky_light import VisibilityBake
+from app.sky_field import SkyField, VisibilityBake
 from app.sky_model import SUN_HALF_ANGLE_DEG
 from render.gpu_scene import GpuScene
-from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
+from render.pass_graph import (
+    FrameContext,
+    RenderPass,
+    Resources,
+    bind_texture,
+    set_uniforms,
+)
 from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
@@ -32,6 +38,43 @@ log = logging.getLogger(__name__)
 
 def sky_key(sky: SkySettings) -> tuple:
     return (sky.time, sky.date, sky.latitude, sky.longitude, sky.north_deg, sky.image)
+
+
+class GpuSkyField:
+    """The sky's share by place (``app.sky_field``) as one 3D texture, the three axes' slabs
+    along z; before the bake is done, one empty cell (every pixel keeps its vertex's share)."""
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.ctx = ctx
+        self.field: SkyField | None = None
+        self.texture = self._texture((1, 1, 3), np.zeros((3, 1, 1, 4), np.float16))
+
+    def _texture(self, size: tuple[int, int, int], data: np.ndarray) -> moderngl.Texture3D:
+        tex = self.ctx.texture3d(size, 4, np.ascontiguousarray(data).tobytes(), dtype="f2")
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        tex.repeat_x = tex.repeat_y = tex.repeat_z = False
+        return tex
+
+    def set(self, field: SkyField | None) -> None:
+        self.texture.release()
+        self.field = field
+        if field is None:
+            self.texture = self._texture((1, 1, 3), np.zeros((3, 1, 1, 4), np.float16))
+        else:
+            x, y, z = field.dims
+            self.texture = self._texture((x, y, 3 * z), field.packed())
+
+    def uniforms(self) -> dict[str, object]:
+        f = self.field
+        if f is None:
+            return {"u_sf_origin_cell": (0.0, 0.0, 0.0, 1.0), "u_sf_dims": (1, 1, 1)}
+        return {
+            "u_sf_origin_cell": (*(float(v) for v in f.origin), float(f.cell)),
+            "u_sf_dims": tuple(int(v) for v in f.dims),
+        }
+
+    def release(self) -> None:
+        self.texture.release()
 
 
 @dataclass
@@ -43,6 +86,7 @@ class SkyFrame:
     north: np.ndarray
     east: np.ndarray
     scale: float  # a dimmer on sun and sky (1: Brightness acts in the exposure)
+    field: GpuSkyField  # the sky's share by place
 
     @property
     def sun_to(self) -> tuple[float, float, float]:
@@ -56,13 +100,9 @@ class SkyFrame:
         """The sky's diffuse light for sky.glsl (in the SKY variants; the sun is a light of the
         light loop)."""
         sh = (self.bake.sh * self.scale).astype(np.float32)
-        set_uniforms(
-            prog,
-            {},
-            optional={
-                "u_sky_sh": sh.tobytes(),
-            },
-        )
+        set_uniforms(prog, {}, optional={"u_sky_sh": sh.tobytes()})
+        if bind_texture(prog, "sky_field", self.field.texture, optional=True):
+            set_uniforms(prog, self.field.uniforms())
 
 
 class DaylightPass(RenderPass):
@@ -80,6 +120,8 @@ class DaylightPass(RenderPass):
         self.visibility: VisibilityBake | None = None
         self._visibility_scene: GpuScene | None = None
         self.visibility_ready = False
+        self._vertices_shown = False
+        self.field = GpuSkyField(ctx)
 
     def configure(self, settings, scene, frame) -> bool:
         self.sky = scene_sky(settings.sky, getattr(scene, "scene", scene))  # its own north
@@ -113,17 +155,25 @@ class DaylightPass(RenderPass):
 
     # -- the sky visibility --------------------------------------------------------------------
     def update_visibility(self, scene: GpuScene) -> None:
-        """Start the scene's visibility bake once; upload its result when it is ready."""
+        """Start the scene's visibility bake once; upload the share per vertex as soon as it
+        is ready (the field by place takes as long again) and the field when it is."""
         if scene is not self._visibility_scene:
             if self.visibility is not None:
                 self.visibility.cancel()
             self._visibility_scene = scene
             self.visibility_ready = False
+            self._vertices_shown = False
+            self.field.set(None)
             self.visibility = VisibilityBake(scene.scene) if scene.meshes else None
         bake = self.visibility
-        if bake is not None and not self.visibility_ready and bake.done:
-            if bake.result is not None:
-                scene.set_sky_visibility(bake.result)
+        if bake is None or self.visibility_ready:
+            return
+        done = bake.done  # read first: ``result`` is set before the bake is done
+        if not self._vertices_shown and bake.result is not None:
+            scene.set_sky_visibility(bake.result)
+            self._vertices_shown = True
+        if done:
+            self.field.set(bake.field)
             self.visibility_ready = True
 
     def wait_for_visibility(self, scene: GpuScene, timeout: float = 120.0) -> bool:
@@ -140,12 +190,13 @@ class DaylightPass(RenderPass):
         assert self.texture is not None
         north, east = north_east(self.sky.north_deg)
         # Brightness is the exposure's compensation (the present pass): no dimmer on the sky.
-        res.put("sky", SkyFrame(self.texture, bake, north, east, 1.0))
+        res.put("sky", SkyFrame(self.texture, bake, north, east, 1.0, self.field))
 
     def release(self) -> None:
         super().release()
         if self.visibility is not None:
             self.visibility.cancel()
+        self.field.release()
         if self.texture is not None:
             self.texture.release()
             self.texture = None

@@ -39,7 +39,7 @@ vec3 light_texel(ivec2 p) {
     vec3 N = safe_normalize(normal.xyz, vec3(0.0, 1.0, 0.0));
     use_shadow_mask_of(p, depth, N);
 #ifdef SKY
-    g_sky_visibility = texelFetch(u_gb_sky, p, 0).r;
+    g_sky_visibility = sky_share(P, N, texelFetch(u_gb_sky, p, 0).r);
 #endif
     vec3 c = shade(P, N, V, albedo.rgb, normal.w, albedo.a);
 #if defined(INDIRECT) || defined(INDIRECT_FUSED)

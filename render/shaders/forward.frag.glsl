@@ -13,9 +13,9 @@ void main() {
     use_ao_of(ivec2(gl_FragCoord.xy));
     vec3 V = safe_normalize(u_eye - v_world, vec3(0.0, 0.0, 1.0));
     g_material_occlusion = surface_occlusion();
-    g_sky_visibility = surface_sky();
-    vec3 lit = shade(v_world, surface_normal(), V, surface_albedo(), surface_roughness(),
-                     surface_metallic());
+    vec3 N = surface_normal();
+    g_sky_visibility = sky_share(v_world, N, surface_sky());
+    vec3 lit = shade(v_world, N, V, surface_albedo(), surface_roughness(), surface_metallic());
 #ifdef ALPHA_BLEND
     out_color = vec4(storable(lit + surface_emissive()), clamp(surface_alpha(), 0.0, 1.0));
 #else

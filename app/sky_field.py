@@ -1,0 +1,275 @@
+"""The share of the sky each point sees, by place: a grid the shaders read per pixel.
+
+The per-vertex share (``app.sky_light.sky_visibility``) is drawn by interpolating across each
+triangle. A real room's wall or ceiling is a few long triangles whose corners lie metres apart:
+the light of a window, which falls off over tens of centimetres, cannot be drawn by three
+values, and the daylit living room's walls and ceiling showed polygons of sky light (stop 34).
+This keeps the share where it was measured instead, on a grid independent of how the surfaces
+were cut into triangles (as ``app.ambient_field`` keeps the bounce light):
+
+- points are spread over the surfaces by area (``RAYS`` rays a side, the per-vertex bake's
+  cosine and portal rays: ``app.sky_light.seen_share``), on both sides of each surface;
+- each side's share is spread with a tent ``SPREAD`` cells wide into six grids by the way it
+  faces (+X, -X, +Y, -Y, +Z, -Z, by the squared components of its normal): the inside of a
+  wall and the outside of the wall behind it face opposite ways and do not mix;
+- a cell keeps the sum of the shares it received and the sum of their weights; a pixel of
+  normal N reads the three grids on N's side trilinearly and divides (normalised convolution:
+  an empty cell next to a full one does not darken it), three fetches (sky.glsl ``sky_share``);
+- where the cells received little (``SURE_WEIGHT``: a small object between the points, a grid
+  grown coarse on a big model) the pixel keeps its vertex's share.
+
+A side covered by something lying on it (``app.sky_light.COVERED_SHARE`` of its rays end
+within ``COVER_M``: the floor under a cabinet) weighs nothing, so the cabinet's sides take the
+light of the room round it. Baked with the per-vertex share, on the same background thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from app.ambient_field import BUCKETS, grid_around, tents
+from app.daylight_photons import Portal
+from app.raycast import RayCaster
+from app.scene import Scene
+from app.sky_light import (
+    CHUNK_RAYS,
+    OFFSET_M,
+    PORTAL_SHARE,
+    lets_light_through,
+    occluders,
+    seen_share,
+    sky_portal,
+    sky_visibility,
+)
+
+log = logging.getLogger(__name__)
+
+RAYS = 48  # per side of a point
+MAX_RAYS = 6_000_000  # the points' budget
+CELL_M = 0.1  # the cell's edge at least (grown until the grid fits MAX_CELLS)
+#: ... and at least this many times the points' median spacing, so that a cell on a surface
+#: receives a few points' weight (a cathedral's points lie a hand apart, a room's 5 cm).
+SPACINGS = 2.0
+SPREAD = 2.0  # a point's tent reaches this many cells each way
+MAX_CELLS = 1 << 17  # per direction grid
+#: A pixel takes the field's share alone where the cells it reads received this much weight
+#: (a point's tent peaks at 1), its vertex's share where they received none, and mixes between.
+SURE_WEIGHT = 1.0
+
+
+@dataclass(frozen=True)
+class SkyField:
+    """The sky's share by place and facing. ``total`` and ``weight`` are (6, Z, Y, X) float32:
+    per direction grid and cell, the sum of the points' weighted shares and of their weights;
+    cell (i, j, k) spans ``origin + cell * [i, j, k]`` to ``origin + cell * [i + 1, j + 1,
+    k + 1]``."""
+
+    origin: np.ndarray  # (3,) float64
+    cell: float
+    dims: tuple[int, int, int]  # cells along x, y, z
+    total: np.ndarray
+    weight: np.ndarray
+    points: int  # sides spread into it
+
+    def lookup(self, points: np.ndarray, normals: np.ndarray, vertex: np.ndarray) -> np.ndarray:
+        """The share of the sky at world ``points`` of unit ``normals`` whose vertices saw
+        ``vertex``: the CPU twin of sky.glsl ``sky_share``."""
+        pts = np.asarray(points, np.float64).reshape(-1, 3)
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+        dims = np.array(self.dims)
+        g = np.clip((pts - self.origin) / self.cell, 0.5, dims - 0.5) - 0.5
+        base = np.minimum(np.floor(g).astype(np.int64), np.maximum(dims - 2, 0))
+        f = g - base
+        total, weight = np.zeros(len(pts)), np.zeros(len(pts))
+        for corner in range(8):
+            o = np.array([(corner >> a) & 1 for a in range(3)])
+            idx = np.minimum(base + o, dims - 1)
+            w = np.prod(np.where(o == 1, f, 1.0 - f), axis=1)
+            at = (idx[:, 2], idx[:, 1], idx[:, 0])
+            for axis in range(3):
+                bucket = np.where(nrm[:, axis] >= 0.0, 2 * axis, 2 * axis + 1)
+                share = w * nrm[:, axis] ** 2
+                total += share * self.total[(bucket,) + at]
+                weight += share * self.weight[(bucket,) + at]
+        sure = np.clip(weight / SURE_WEIGHT, 0.0, 1.0)
+        field = np.divide(total, weight, out=np.zeros_like(total), where=weight > 1e-6)
+        return vertex + (field - vertex) * sure
+
+    def packed(self) -> np.ndarray:
+        """The grids as the shader reads them, (3 Z, Y, X, 4) float16: slab k holds axis k's
+        (total, weight) facing + and then facing -."""
+        t, w = self.total, self.weight
+        slabs = [np.stack([t[2 * k], w[2 * k], t[2 * k + 1], w[2 * k + 1]], -1) for k in range(3)]
+        return np.concatenate(slabs, axis=0).astype(np.float16)
+
+
+def surface_points(
+    scene: Scene, count: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """About ``count`` points spread over the surfaces that hide the sky by area (each
+    triangle gets its expected number, rounded at random), and their normals (the vertices'
+    normals interpolated, a broken one as none; the face's where those cancel): (P, 3) and
+    (P, 3) float64. Triangles of no area or not finite have no points."""
+    clear = lets_light_through(scene)
+    corners, normals = [], []
+    for mesh, through in zip(scene.meshes, clear):
+        if through or len(mesh.indices) == 0:
+            continue
+        idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+        corners.append(np.asarray(mesh.positions, np.float64)[idx])
+        normals.append(np.nan_to_num(np.asarray(mesh.normals, np.float64)[idx]))
+    if not corners:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    tri, tri_n = np.concatenate(corners), np.concatenate(normals)
+    face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(face, axis=1)
+    good = np.isfinite(area) & (area > 0.0)
+    tri, tri_n, face, area = tri[good], tri_n[good], face[good], area[good]
+    if not len(area):
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    expected = area / area.sum() * count
+    per_tri = np.floor(expected + rng.random(len(area))).astype(np.int64)
+    which = np.repeat(np.arange(len(area)), per_tri)
+    u, v = rng.random(len(which)), rng.random(len(which))
+    flip = u + v > 1.0
+    u, v = np.where(flip, 1.0 - u, u), np.where(flip, 1.0 - v, v)
+    bary = np.stack([1.0 - u - v, u, v], axis=1)[:, :, None]
+    pos = (tri[which] * bary).sum(axis=1)
+    nrm = (tri_n[which] * bary).sum(axis=1)
+    length = np.linalg.norm(nrm, axis=1, keepdims=True)
+    flat = face[which] / np.linalg.norm(face[which], axis=1, keepdims=True)
+    nrm = np.where(length > 1e-6, nrm / np.maximum(length, 1e-12), flat)
+    return pos, nrm
+
+
+def sky_field(
+    scene: Scene,
+    caster: RayCaster,
+    portal: Portal | None,
+    rays: int | None = None,
+    max_rays: int | None = None,
+    seed: int = 0,
+    cancelled: Callable[[], bool] | None = None,
+) -> SkyField | None:
+    """The field of ``scene`` (rays through ``caster``, the sky's occluders; half of each
+    side's rays aimed at ``portal`` when there is one; ``rays`` a side, ``max_rays`` in all:
+    None, ``RAYS`` and ``MAX_RAYS``); None when there is no surface or ``cancelled()`` turned
+    true."""
+    rng = np.random.default_rng(seed)
+    rays = RAYS if rays is None else rays
+    max_rays = MAX_RAYS if max_rays is None else max_rays
+    n_portal = int(round(rays * PORTAL_SHARE)) if portal is not None and rays >= 2 else 0
+    n_cos = max(1, rays - n_portal)
+    pos, nrm = surface_points(scene, max(1, max_rays // (2 * (n_cos + n_portal))), rng)
+    if not len(pos):
+        return None
+    side_pos = np.concatenate([pos + nrm * OFFSET_M, pos - nrm * OFFSET_M])
+    side_nrm = np.concatenate([nrm, -nrm])
+    seen = np.zeros(len(side_pos))
+    covered = np.zeros(len(side_pos), bool)
+    through = np.ones(len(side_pos))
+    per_chunk = max(1, CHUNK_RAYS // (n_cos + n_portal))
+    for start in range(0, len(side_pos), per_chunk):
+        if cancelled is not None and cancelled():
+            return None
+        rows = slice(start, start + per_chunk)
+        seen[rows], covered[rows], through[rows] = seen_share(
+            caster, side_pos[rows], side_nrm[rows], n_cos, n_portal, portal, rng
+        )
+    weight = np.where(covered, 0.0, through)
+    return spread_field(side_pos, side_nrm, np.clip(seen, 0.0, 1.0), weight, spacing(pos))
+
+
+def spacing(points: np.ndarray) -> float:
+    """The median distance from each point to its nearest neighbour (0 for fewer than 2)."""
+    if len(points) < 2:
+        return 0.0
+    dist, _ = cKDTree(points).query(points, k=2)
+    value = float(np.median(dist[:, 1]))
+    return value if math.isfinite(value) else 0.0
+
+
+def spread_field(
+    pos: np.ndarray, nrm: np.ndarray, seen: np.ndarray, weight: np.ndarray, apart: float = 0.0
+) -> SkyField | None:
+    """The field of sides at ``pos`` facing unit ``nrm`` that saw ``seen`` of the sky, each
+    counted ``weight`` (0 to 1), the points ``apart`` metres apart (the cell: ``SPACINGS``
+    times that, at least ``CELL_M``); those not finite weigh nothing. None when none
+    counts."""
+    ok = (weight > 0.0) & np.isfinite(pos).all(axis=1) & np.isfinite(nrm).all(axis=1)
+    ok &= np.isfinite(seen) & np.isfinite(weight)
+    if not ok.any():
+        return None
+    pos, nrm, seen, weight = pos[ok], nrm[ok], seen[ok], weight[ok]
+    origin, cell, dims = grid_around(pos, max(CELL_M, SPACINGS * apart), SPREAD, MAX_CELLS)
+    flat_n = int(np.prod(dims))
+    total = np.zeros(BUCKETS * flat_n)
+    received = np.zeros(BUCKETS * flat_n)
+    for start in range(0, len(pos), 4096):  # (P, 64) tents: a few MB at a time
+        part = slice(start, start + 4096)
+        p, n, s = pos[part], nrm[part], seen[part]
+        flat, tent = tents(p, origin, cell, dims, SPREAD)
+        bucket = np.where(n >= 0.0, [0, 2, 4], [1, 3, 5])  # (P, 3)
+        keys = (bucket[:, :, None] * flat_n + flat[:, None, :]).ravel()
+        w = ((n * n * weight[part, None])[:, :, None] * tent[:, None, :]).ravel()
+        received += np.bincount(keys, w, BUCKETS * flat_n)
+        total += np.bincount(keys, w * np.repeat(s, 3 * flat.shape[1]), BUCKETS * flat_n)
+    shape = (BUCKETS, int(dims[2]), int(dims[1]), int(dims[0]))
+    return SkyField(
+        origin,
+        cell,
+        (int(dims[0]), int(dims[1]), int(dims[2])),
+        total.reshape(shape).astype(np.float32),
+        received.reshape(shape).astype(np.float32),
+        len(pos),
+    )
+
+
+class VisibilityBake:
+    """The sky's share per vertex (``app.sky_light.sky_visibility``: ``result``) and by place
+    (:func:`sky_field`: ``field``) for one scene, on a background thread."""
+
+    def __init__(self, scene: Scene, **options) -> None:
+        self.scene = scene
+        self.result: list[np.ndarray] | None = None
+        self.field: SkyField | None = None
+        self.error: str | None = None
+        self._cancel = threading.Event()
+        self._done = threading.Event()
+        self._thread = threading.Thread(
+            target=self._run, kwargs=options, name="sky-visibility", daemon=True
+        )
+        self._thread.start()
+
+    def _run(self, seed: int = 0, **options) -> None:
+        try:
+            # Its own caster: embree builds a shared one lazily, not safely from two threads.
+            tri = occluders(self.scene)
+            caster = RayCaster(tri)
+            stop = self._cancel.is_set
+            self.result = sky_visibility(self.scene, caster, seed=seed, cancelled=stop, **options)
+            if self.result is not None and not stop():
+                portal = sky_portal(self.scene, caster, tri, seed)
+                self.field = sky_field(self.scene, caster, portal, seed=seed, cancelled=stop)
+        except Exception as exc:  # noqa: BLE001 - a failed bake leaves the sky light out
+            self.error = f"{type(exc).__name__}: {exc}"
+            log.warning("sky visibility could not be computed: %s", self.error)
+        finally:
+            self._done.set()
+
+    @property
+    def done(self) -> bool:
+        return self._done.is_set()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        return self._done.wait(timeout)
+
+    def cancel(self) -> None:
+        self._cancel.set()
