@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from app.cps import MAX_LEVEL
 from app.scene import LIGHT_MIN_DIST2
-from app.sky_field import SURE_WEIGHT as SKY_SURE_WEIGHT
+from app.sky_field import LEAN as SKY_LEAN
 
 # Lights: the uniform block holds this many (std140, three vec4 each: 48 KiB of the 64 KiB
 # block limit).
@@ -150,7 +150,7 @@ SHADER_DEFINES: dict[str, object] = {
     "PM_MAX_K": PM_MAX_K,
     "PM_NO_WINNER": f"0x{PM_NO_WINNER:X}u",
     "MAX_SHADOW_TILES": MAX_SHADOW_TILES,
-    "SKY_SURE_WEIGHT": repr(float(SKY_SURE_WEIGHT)),
+    "SKY_LEAN": repr(float(SKY_LEAN)),
     "OBJECT_TABLE_BINDING": OBJECT_TABLE_BINDING,
     "TEXTURE_UNIT_SHADOW_ATLAS": TEXTURE_UNITS["shadow_atlas"],
     **{f"IMAGE_UNIT_{k.upper()}": v for k, v in IMAGE_UNITS.items()},

@@ -41,13 +41,14 @@ def sky_key(sky: SkySettings) -> tuple:
 
 
 class GpuSkyField:
-    """The sky's share by place (``app.sky_field``) as one 3D texture, the three axes' slabs
-    along z; before the bake is done, one empty cell (every pixel keeps its vertex's share)."""
+    """The sky's share by place (``app.sky_field``) as one 3D half-float texture, the + and -
+    grids' slabs along z; before the bake is done, one empty cell (every pixel keeps its
+    vertex's share)."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self.field: SkyField | None = None
-        self.texture = self._texture((1, 1, 3), np.zeros((3, 1, 1, 4), np.float16))
+        self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float16))
 
     def _texture(self, size: tuple[int, int, int], data: np.ndarray) -> moderngl.Texture3D:
         tex = self.ctx.texture3d(size, 4, np.ascontiguousarray(data).tobytes(), dtype="f2")
@@ -59,10 +60,10 @@ class GpuSkyField:
         self.texture.release()
         self.field = field
         if field is None:
-            self.texture = self._texture((1, 1, 3), np.zeros((3, 1, 1, 4), np.float16))
+            self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float16))
         else:
             x, y, z = field.dims
-            self.texture = self._texture((x, y, 3 * z), field.packed())
+            self.texture = self._texture((x, y, 2 * z), field.packed())
 
     def uniforms(self) -> dict[str, object]:
         f = self.field

@@ -16,27 +16,27 @@ vec3 sky_sh(vec3 n) {
          + u_sky_sh[7] * (1.092548 * n.x * n.z) + u_sky_sh[8] * (0.546274 * (n.x * n.x - n.y * n.y));
 }
 
-// The sky's share by place: per cell and way of facing, the sum of the shares measured near it
-// and of their weights; slab k of the texture holds axis k's (+ sum, + weight, - sum, - weight).
+// The sky's share by place (app/sky_field.py): per cell and way of facing, the mean share
+// measured near it (-1: none measured); slab 0 of the texture holds +X, +Y, +Z, slab 1 -X,
+// -Y, -Z.
 uniform sampler3D u_sky_field;
 uniform vec4 u_sf_origin_cell;
 uniform ivec3 u_sf_dims;
 
-// The share of the sky P sees facing N: the three grids on N's side, trilinear, by N's squared
-// components, the sums over the weights; ``vertex`` (the share interpolated from the vertices)
-// where the grids received little (SURE_WEIGHT). SkyField.lookup is the CPU twin.
+// The share of the sky P sees facing N: the grids on N's side that N leans towards (its
+// squared component above SKY_LEAN), trilinear, by those components; ``vertex`` (the share
+// interpolated from the vertices) where none holds a share. SkyField.lookup is the CPU twin.
 float sky_share(vec3 P, vec3 N, float vertex) {
     vec3 dims = vec3(u_sf_dims);
     vec3 g = clamp((P - u_sf_origin_cell.xyz) / u_sf_origin_cell.w, vec3(0.5), dims - 0.5);
     vec2 xy = g.xy / dims.xy;
-    vec4 x = textureLod(u_sky_field, vec3(xy, g.z / (3.0 * dims.z)), 0.0);
-    vec4 y = textureLod(u_sky_field, vec3(xy, (g.z + dims.z) / (3.0 * dims.z)), 0.0);
-    vec4 z = textureLod(u_sky_field, vec3(xy, (g.z + 2.0 * dims.z) / (3.0 * dims.z)), 0.0);
+    vec3 plus = textureLod(u_sky_field, vec3(xy, g.z / (2.0 * dims.z)), 0.0).rgb;
+    vec3 minus = textureLod(u_sky_field, vec3(xy, (g.z + dims.z) / (2.0 * dims.z)), 0.0).rgb;
+    vec3 share = mix(minus, plus, step(0.0, N));
     vec3 n2 = N * N;
-    vec2 s = n2.x * (N.x >= 0.0 ? x.rg : x.ba) + n2.y * (N.y >= 0.0 ? y.rg : y.ba)
-             + n2.z * (N.z >= 0.0 ? z.rg : z.ba);
-    float sure = clamp(s.y / SKY_SURE_WEIGHT, 0.0, 1.0);
-    return mix(vertex, s.x / max(s.y, 1e-6), sure);
+    vec3 w = n2 * step(0.0, share) * step(SKY_LEAN, n2);
+    float total = w.x + w.y + w.z;
+    return total > 0.0 ? dot(w, share) / total : vertex;
 }
 #else
 float sky_share(vec3 P, vec3 N, float vertex) {
