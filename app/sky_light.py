@@ -367,8 +367,8 @@ def seen_share(
     esc = out & inside[:, None]
     pdf[esc] = portal.open_density(origins[esc.ravel()], flat[esc.ravel()])
     escaped = out[:, :n_cos].sum(axis=1)
-    through = np.where(inside, (pdf[:, :n_cos] > 0.0).sum(axis=1) / np.maximum(escaped, 1), 0.0)
-    through = np.where(escaped > 0, through, 1.0)
+    left = (pdf[:, :n_cos] > 0.0).sum(axis=1)  # through_portal, its density already found
+    through = np.where(escaped > 0, left / np.maximum(escaped, 1), 1.0)
     if not n_portal:
         return out.mean(axis=1), covered, through
     n_p = np.where(inside, n_portal, 0)[:, None]
@@ -380,10 +380,30 @@ def seen_share(
 def sky_portal(scene: Scene, caster: RayCaster, tri: np.ndarray, seed: int) -> Portal | None:
     """The sky's portal seen from the spawn, or None (a closed room, the spawn outside the
     model, no geometry)."""
-    box = scene_box(tri)
+    return portal_from(caster, scene_box(tri), scene.spawn.position, seed)
+
+
+def portal_from(
+    caster: RayCaster, box: tuple[np.ndarray, np.ndarray] | None, spawn, seed: int
+) -> Portal | None:
+    """:func:`sky_portal` for the triangles' ``box`` (``scene_box``) and the spawn's place."""
     if box is None:
         return None
-    portal = find_portal(caster, box, np.asarray(scene.spawn.position, np.float64), seed)
+    portal = find_portal(caster, box, np.asarray(spawn, np.float64), seed)
     if not portal.inside or not portal.open.any() or portal.total_area <= 0.0:
         return None
     return portal
+
+
+def through_portal(portal: Portal | None, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Whether rays from ``o`` along unit ``d`` that left the model leave it through the
+    room's windows (the sky's portal), (k,) bool: all of them without a portal, none from
+    outside its box (a model's outside). A ray that leaves elsewhere went out through a gap
+    in the model: under a floor that stops short of its walls, it sees the ground."""
+    if portal is None:
+        return np.ones(len(o), bool)
+    out = np.zeros(len(o), bool)
+    inside = np.flatnonzero(np.all((o > portal.lo) & (o < portal.hi), axis=1))
+    if len(inside):
+        out[inside] = portal.open_density(o[inside], d[inside]) > 0.0
+    return out
