@@ -24,7 +24,10 @@ were cut into triangles (as ``app.ambient_field`` keeps the bounce light):
 
 A side covered by something lying on it (``app.sky_light.COVERED_SHARE`` of its rays end
 within ``COVER_M``: the floor under a cabinet) weighs nothing, so the cabinet's sides take the
-light of the room round it. Baked with the per-vertex share, on the same background thread.
+light of the room round it. A side whose escaping rays leave the model elsewhere than through
+the room's windows (``app.sky_light.through_portal``: the ground seen through a gap under the
+floor) weighs by the share that does. Baked before the per-vertex share, on the same
+background thread (3.4 s for the living room's 6M rays, the vertices 3.9 s more).
 """
 
 from __future__ import annotations
@@ -288,8 +291,8 @@ def spread_field(
 
 
 class VisibilityBake:
-    """The sky's share per vertex (``app.sky_light.sky_visibility``: ``result``) and by place
-    (:func:`sky_field`: ``field``) for one scene, on a background thread."""
+    """The sky's share by place (:func:`sky_field`: ``field``, set first) and per vertex
+    (``app.sky_light.sky_visibility``: ``result``) for one scene, on a background thread."""
 
     def __init__(self, scene: Scene, **options) -> None:
         self.scene = scene
@@ -309,10 +312,13 @@ class VisibilityBake:
             tri = occluders(self.scene)
             caster = RayCaster(tri)
             stop = self._cancel.is_set
-            self.result = sky_visibility(self.scene, caster, seed=seed, cancelled=stop, **options)
-            if self.result is not None and not stop():
-                portal = sky_portal(self.scene, caster, tri, seed)
-                self.field = sky_field(self.scene, caster, portal, seed=seed, cancelled=stop)
+            # The field first: it is what the lighting reads wherever a point was near.
+            portal = sky_portal(self.scene, caster, tri, seed)
+            self.field = sky_field(self.scene, caster, portal, seed=seed, cancelled=stop)
+            if not stop():
+                self.result = sky_visibility(
+                    self.scene, caster, seed=seed, cancelled=stop, **options
+                )
         except Exception as exc:  # noqa: BLE001 - a failed bake leaves the sky light out
             self.error = f"{type(exc).__name__}: {exc}"
             log.warning("sky visibility could not be computed: %s", self.error)

@@ -2,8 +2,8 @@
 
 Two passes. ``DaylightPass`` (first in the frame) re-bakes the sky on the CPU only when a
 ``sky.*`` setting changes (``app.sky.bake_sky``: about 15 ms), starts the scene's sky visibility
-bake once per scene (``app.sky_field.VisibilityBake``, a background thread: the share per vertex,
-then by place) and uploads each part when it is ready, and hands the lighting a
+bake once per scene (``app.sky_field.VisibilityBake``, a background thread: the share by place,
+then per vertex) and uploads each part when it is ready, and hands the lighting a
 :class:`SkyFrame` as the ``sky`` resource: with it the lighting compiles its ``SKY`` variant
 (sky.glsl: the sun and the sky's diffuse light). ``SkyPass`` draws the sky where no geometry
 covers a pixel, after the opaque lighting, so windows open onto it (glass is drawn after it).
@@ -121,7 +121,7 @@ class DaylightPass(RenderPass):
         self.visibility: VisibilityBake | None = None
         self._visibility_scene: GpuScene | None = None
         self.visibility_ready = False
-        self._vertices_shown = False
+        self._field_shown = False
         self.field = GpuSkyField(ctx)
 
     def configure(self, settings, scene, frame) -> bool:
@@ -156,25 +156,27 @@ class DaylightPass(RenderPass):
 
     # -- the sky visibility --------------------------------------------------------------------
     def update_visibility(self, scene: GpuScene) -> None:
-        """Start the scene's visibility bake once; upload the share per vertex as soon as it
-        is ready (the field by place takes as long again) and the field when it is."""
+        """Start the scene's visibility bake once; upload the share by place as soon as it is
+        ready (the per-vertex share, for where no point was near, takes as long again) and
+        the vertices' when they are."""
         if scene is not self._visibility_scene:
             if self.visibility is not None:
                 self.visibility.cancel()
             self._visibility_scene = scene
             self.visibility_ready = False
-            self._vertices_shown = False
+            self._field_shown = False
             self.field.set(None)
             self.visibility = VisibilityBake(scene.scene) if scene.meshes else None
         bake = self.visibility
         if bake is None or self.visibility_ready:
             return
-        done = bake.done  # read first: ``result`` is set before the bake is done
-        if not self._vertices_shown and bake.result is not None:
-            scene.set_sky_visibility(bake.result)
-            self._vertices_shown = True
-        if done:
+        done = bake.done  # read first: ``field`` is set before the bake is done
+        if not self._field_shown and bake.field is not None:
             self.field.set(bake.field)
+            self._field_shown = True
+        if done:
+            if bake.result is not None:
+                scene.set_sky_visibility(bake.result)
             self.visibility_ready = True
 
     def wait_for_visibility(self, scene: GpuScene, timeout: float = 120.0) -> bool:

@@ -135,9 +135,10 @@ def test_broken_meshes_and_empty_scenes_bake_without_error():
     assert bake.error is None and bake.field is None and bake.result == []
 
 
-def test_until_the_field_is_baked_the_room_keeps_its_vertices_share(host):
-    """The field takes as long again as the share per vertex: the vertices' share is drawn as
-    soon as it is ready, and a pixel where the field received nothing keeps it."""
+def test_where_the_field_holds_no_share_the_room_keeps_its_vertices_share(host):
+    """Where the field holds no share (a model's outside, or a scene whose field was not
+    made) a pixel keeps the share interpolated from its vertices, a coarser picture of the
+    same light, not a missing term."""
     scene = room(n=16)
     pose = ((1.5, 1.5, 0.0), 90.0, 0.0)
     with_field = look(host, scene, *pose, sky__time="07:00") @ LUMA
