@@ -174,37 +174,51 @@ def surface_points(
     """About ``count`` points spread over the surfaces that hide the sky by area (each
     triangle gets its expected number, rounded at random), and their normals (the vertices'
     normals interpolated, a broken one as none; the face's where those cancel): (P, 3) and
-    (P, 3) float64. Triangles of no area or not finite have no points."""
+    (P, 3) float64. Triangles of no area, not finite or with an index out of range have no
+    points. One mesh at a time: a model's triangles are never all copied at once."""
     clear = lets_light_through(scene)
-    corners, normals = [], []
-    for mesh, through in zip(scene.meshes, clear):
-        if through or len(mesh.indices) == 0:
+    meshes = [m for m, through in zip(scene.meshes, clear) if not through]
+    areas = [_areas(*_triangles(m))[0] for m in meshes]
+    total = float(sum(a.sum() for a in areas))
+    points, normals = [np.zeros((0, 3))], [np.zeros((0, 3))]
+    if not total > 0.0 or not math.isfinite(total):
+        return points[0], normals[0]
+    for mesh, area in zip(meshes, areas):
+        per_tri = np.floor(area / total * count + rng.random(len(area))).astype(np.int64)
+        if not per_tri.sum():
             continue
-        idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
-        corners.append(np.asarray(mesh.positions, np.float64)[idx])
-        normals.append(np.nan_to_num(np.asarray(mesh.normals, np.float64)[idx]))
-    if not corners:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    tri, tri_n = np.concatenate(corners), np.concatenate(normals)
+        idx, pos = _triangles(mesh)
+        which = np.repeat(np.arange(len(area)), per_tri)
+        u, v = rng.random(len(which)), rng.random(len(which))
+        flip = u + v > 1.0
+        u, v = np.where(flip, 1.0 - u, u), np.where(flip, 1.0 - v, v)
+        bary = np.stack([1.0 - u - v, u, v], axis=1)[:, :, None]
+        corners = idx[which]
+        vn = np.nan_to_num(np.asarray(mesh.normals, np.float64).reshape(-1, 3))
+        nrm = (vn[corners] * bary).sum(axis=1)
+        face = _areas(corners, pos)[1]
+        length = np.linalg.norm(nrm, axis=1, keepdims=True)
+        nrm = np.where(length > 1e-6, nrm / np.maximum(length, 1e-12), face)
+        points.append((pos[corners] * bary).sum(axis=1))
+        normals.append(nrm)
+    return np.concatenate(points), np.concatenate(normals)
+
+
+def _triangles(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's triangles whose corners exist, (T, 3) int64, and its positions (V, 3)."""
+    pos = np.asarray(mesh.positions, np.float64).reshape(-1, 3)
+    idx = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    return idx[np.all((idx >= 0) & (idx < len(pos)), axis=1)], pos
+
+
+def _areas(idx: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's area (0 where it has none or is not finite), (T,), and unit normal."""
+    tri = pos[idx]
     face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area = 0.5 * np.linalg.norm(face, axis=1)
-    good = np.isfinite(area) & (area > 0.0)
-    tri, tri_n, face, area = tri[good], tri_n[good], face[good], area[good]
-    if not len(area):
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    expected = area / area.sum() * count
-    per_tri = np.floor(expected + rng.random(len(area))).astype(np.int64)
-    which = np.repeat(np.arange(len(area)), per_tri)
-    u, v = rng.random(len(which)), rng.random(len(which))
-    flip = u + v > 1.0
-    u, v = np.where(flip, 1.0 - u, u), np.where(flip, 1.0 - v, v)
-    bary = np.stack([1.0 - u - v, u, v], axis=1)[:, :, None]
-    pos = (tri[which] * bary).sum(axis=1)
-    nrm = (tri_n[which] * bary).sum(axis=1)
-    length = np.linalg.norm(nrm, axis=1, keepdims=True)
-    flat = face[which] / np.linalg.norm(face[which], axis=1, keepdims=True)
-    nrm = np.where(length > 1e-6, nrm / np.maximum(length, 1e-12), flat)
-    return pos, nrm
+    length = np.linalg.norm(face, axis=1)
+    good = np.isfinite(length) & (length > 0.0)
+    unit = np.where(good[:, None], face / np.where(good, length, 1.0)[:, None], 0.0)
+    return np.where(good, 0.5 * length, 0.0), unit
 
 
 def sky_field(
