@@ -51,6 +51,7 @@ FULL_WEIGHT = 1.0
 SPACINGS = 4.0  # the cell, in median nearest-neighbour distances of the points
 CELL_M = (0.1, 2.0)  # the cell's edge, metres, at least and at most
 MAX_CELLS = 1 << 17  # per direction grid (the cell grows beyond): 6 x 1 MB at most
+MAX_DIM = 1024  # cells along any axis: two slabs stacked along z fit GL's 2048 texels a side
 COVERED_M = 0.05  # a ray that ends this close met something lying on the face
 COVERED_SHARE = 0.5  # a face is covered when this share of its rays end that close
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -206,12 +207,13 @@ def grid_around(
 ) -> tuple[np.ndarray, float, np.ndarray]:
     """A grid over finite points ``pts`` with room for a tent ``spread`` cells wide each side:
     its origin (the corner of cell 0), its cell (``cell`` metres, grown until the grid has at
-    most ``max_cells`` cells) and its dims (3,) int64 along x, y, z."""
+    most ``max_cells`` cells and ``MAX_DIM`` along each axis: the textures stack two slabs
+    along z, and GL promises 2048 texels a side) and its dims (3,) int64 along x, y, z."""
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     c = cell
     while True:
         dims = np.maximum(np.ceil((hi - lo) / c + 2.0 * spread).astype(np.int64), 1)
-        if int(np.prod(dims)) <= max_cells:
+        if int(np.prod(dims)) <= max_cells and int(dims.max()) <= MAX_DIM:
             break
         c *= 1.25
     return 0.5 * (lo + hi) - 0.5 * dims * c, c, dims

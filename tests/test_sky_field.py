@@ -15,6 +15,7 @@ from app.sky_field import VisibilityBake, sky_field, spread_field
 from app.sky_light import occluders, sky_portal
 from app.sky_model import LUMA
 from render.offscreen import OffscreenHost
+from render.sky import GpuSkyField
 from tests.test_sky import grid, look, pixel
 from tests.test_sky_light import room
 
@@ -190,3 +191,22 @@ def test_the_daylight_bounce_does_not_come_up_through_a_gap_in_the_model():
     gapped = AmbientProbe(gapped_room()).estimate([], sh).ambient
     assert whole > 0.0
     assert gapped == pytest.approx(whole, rel=0.05), (gapped, whole)
+
+
+def test_a_long_thin_model_gets_a_field_the_gpu_can_hold():
+    """A 2 km street of 3 m: the grid's cell grows until no axis has more than 1024 cells (the
+    texture stacks two slabs along z; GL promises 2048 texels a side), and the renderer
+    uploads it."""
+    pos = np.array([[x, 0.0, z] for x in np.linspace(-1000, 1000, 4000) for z in (-1.0, 1.0)])
+    up = np.tile([0.0, 1.0, 0.0], (len(pos), 1))
+    field = spread_field(pos, up, np.ones(len(pos)), np.ones(len(pos)))
+    assert field is not None and max(field.dims) <= 1024
+    host = OffscreenHost(32, 16, Settings())
+    try:
+        with host.ctx:
+            gpu = GpuSkyField(host.ctx)
+            gpu.set(field)
+            assert gpu.texture.size == (field.dims[0], field.dims[1], 2 * field.dims[2])
+            gpu.release()
+    finally:
+        host.close()
