@@ -16,9 +16,10 @@ were cut into triangles (as ``app.ambient_field`` keeps the bounce light):
   received little, ``PRIOR_WEIGHT``); an empty cell takes its neighbours' mean (``DILATE``
   cells out), so a trilinear read beside the last filled cell is not darkened;
 - a pixel of normal N reads the means of the grids on N's side that it leans towards
-  (``LEAN``), two half-float fetches (sky.glsl ``sky_share``; three fetches of sums and weights
-  took 10 ms at 2x640x720 on llvmpipe, two 6.5; 8-bit codes took 4 but drew the cells on a
-  dim wall as a faint plaid);
+  (``LEAN``), two float fetches (sky.glsl ``sky_share``; in a standalone test on llvmpipe at
+  2x640x720 three half-float fetches of sums and weights took 9.3 ms, two of means 6.7, in
+  32-bit floats 5.2; 8-bit codes took 3 but drew the cells on a dim wall as a faint plaid; in
+  the living room's lighting pass the two cost 9 ms);
 - where no point was near (a model's outside, whose rays leave it elsewhere than through the
   windows) the pixel keeps its vertex's share.
 
@@ -111,14 +112,15 @@ class SkyField:
         return mean
 
     def packed(self) -> np.ndarray:
-        """The grids as the shader reads them, (2 Z, Y, X, 4) float16: slab 0 holds the cells'
-        share facing +X, +Y, +Z, slab 1 facing -X, -Y, -Z (two fetches a pixel); -1 where
-        there is none (the pixel keeps its vertex's share)."""
+        """The grids as the shader reads them, (2 Z, Y, X, 4) float32 (half floats took 25 %
+        longer to filter in a standalone test on llvmpipe): slab 0 holds the cells' share
+        facing +X, +Y, +Z, slab 1 facing -X, -Y, -Z (two fetches a pixel); -1 where there is
+        none (the pixel keeps its vertex's share)."""
         mean = np.where(np.isfinite(m := self.means()), np.clip(m, 0.0, 1.0), -1.0)
         blank = np.zeros_like(mean[0])
         slabs = [np.stack([mean[0], mean[2], mean[4], blank], -1)]
         slabs.append(np.stack([mean[1], mean[3], mean[5], blank], -1))
-        return np.concatenate(slabs, axis=0).astype(np.float16)
+        return np.concatenate(slabs, axis=0).astype(np.float32)
 
     def lookup(self, points: np.ndarray, normals: np.ndarray, vertex: np.ndarray) -> np.ndarray:
         """The share of the sky at world ``points`` of unit ``normals`` whose vertices saw

@@ -41,17 +41,17 @@ def sky_key(sky: SkySettings) -> tuple:
 
 
 class GpuSkyField:
-    """The sky's share by place (``app.sky_field``) as one 3D half-float texture, the + and -
+    """The sky's share by place (``app.sky_field``) as one 3D float texture, the + and -
     grids' slabs along z; before the bake is done, one empty cell (every pixel keeps its
     vertex's share)."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self.field: SkyField | None = None
-        self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float16))
+        self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float32))
 
     def _texture(self, size: tuple[int, int, int], data: np.ndarray) -> moderngl.Texture3D:
-        tex = self.ctx.texture3d(size, 4, np.ascontiguousarray(data).tobytes(), dtype="f2")
+        tex = self.ctx.texture3d(size, 4, np.ascontiguousarray(data).tobytes(), dtype="f4")
         tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
         tex.repeat_x = tex.repeat_y = tex.repeat_z = False
         return tex
@@ -60,7 +60,7 @@ class GpuSkyField:
         self.texture.release()
         self.field = field
         if field is None:
-            self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float16))
+            self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float32))
         else:
             x, y, z = field.dims
             self.texture = self._texture((x, y, 2 * z), field.packed())
