@@ -33,6 +33,7 @@ uniform float u_light_scale;  // brightness setting times exposure-independent s
 uniform float u_ambient;
 uniform vec3 u_ambient_gradient;  // the even light of normal N: max(u_ambient + g . N, 0)
 uniform float u_occluder_return;  // what hides a crease's light sends back (< 0: unknown)
+#include "field_grid.glsl"
 #ifdef AMBIENT_FIELD
 // The even light by place (app/ambient_field.py, render.ambient_by_place): per cell and way of
 // facing, the bounce light found there (the one level where none was); slab 0 of the texture
@@ -46,11 +47,9 @@ uniform ivec3 u_af_dims;
 // AmbientField.lookup and colour_at are the CPU twins). The one level is already in the grid
 // where it is unsure (build_field), so ``level`` serves only the variant without a field.
 vec3 even_light(vec3 P, vec3 N, float level) {
-    vec3 dims = vec3(u_af_dims);
-    vec3 g = clamp((P - u_af_origin_cell.xyz) / u_af_origin_cell.w, vec3(0.5), dims - 0.5);
-    vec2 xy = g.xy / dims.xy;
-    vec4 a = textureLod(u_ambient_field, vec3(xy, g.z / (2.0 * dims.z)), 0.0);
-    vec4 b = textureLod(u_ambient_field, vec3(xy, (g.z + dims.z) / (2.0 * dims.z)), 0.0);
+    vec3 at = slab_coord(P, u_af_origin_cell, u_af_dims, 0.0, 2.0);
+    vec4 a = textureLod(u_ambient_field, at, 0.0);
+    vec4 b = textureLod(u_ambient_field, at + vec3(0.0, 0.0, 0.5), 0.0);  // the next slab
     vec3 n2 = N * N;
     float lum = n2.x * (N.x >= 0.0 ? a.r : a.g) + n2.y * (N.y >= 0.0 ? a.b : a.a)
                 + n2.z * (N.z >= 0.0 ? b.r : b.g);

@@ -1,7 +1,8 @@
 // Daylight in the shading: the sky's diffuse light (cd/m2), occluded by the room (the share of
-// the sky seen: app/sky_field.py by place, app/sky_light.py per vertex where the field is thin). The sun is a directional light of the light loop (the renderer adds it
-// to the frame's lights, so it gets its shadow map). Compiled in with SKY; without it the term
-// is zero and costs nothing. #include after shading.glsl's uniforms.
+// the sky seen: app/sky_field.py by place, app/sky_light.py per vertex where the field holds
+// none). The sun is a directional light of the light loop (the renderer adds it to the frame's
+// lights, so it gets its shadow map). Compiled in with SKY; without it the term is zero and
+// costs nothing. #include after shading.glsl's uniforms (and field_grid.glsl).
 float g_sky_visibility = 0.0;  // the caller sets it: the share of the sky this point sees
 
 #ifdef SKY
@@ -27,11 +28,9 @@ uniform ivec3 u_sf_dims;
 // squared component above SKY_LEAN), trilinear, by those components; ``vertex`` (the share
 // interpolated from the vertices) where none holds a share. SkyField.lookup is the CPU twin.
 float sky_share(vec3 P, vec3 N, float vertex) {
-    vec3 dims = vec3(u_sf_dims);
-    vec3 g = clamp((P - u_sf_origin_cell.xyz) / u_sf_origin_cell.w, vec3(0.5), dims - 0.5);
-    vec2 xy = g.xy / dims.xy;
-    vec3 plus = textureLod(u_sky_field, vec3(xy, g.z / (2.0 * dims.z)), 0.0).rgb;
-    vec3 minus = textureLod(u_sky_field, vec3(xy, (g.z + dims.z) / (2.0 * dims.z)), 0.0).rgb;
+    vec3 at = slab_coord(P, u_sf_origin_cell, u_sf_dims, 0.0, 2.0);
+    vec3 plus = textureLod(u_sky_field, at, 0.0).rgb;
+    vec3 minus = textureLod(u_sky_field, at + vec3(0.0, 0.0, 0.5), 0.0).rgb;
     vec3 share = mix(minus, plus, step(0.0, N));
     vec3 n2 = N * N;
     vec3 w = n2 * step(0.0, share) * step(SKY_LEAN, n2);
