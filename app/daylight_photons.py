@@ -41,13 +41,12 @@ the windows has no analytic term that knows where the openings are, so a sky pho
 hit is stored (``STORE_SKY_FIRST_HIT``): the gather then shows the sky's direct light on the
 floor by the window and its bounces alike.
 
-**How much light.** ``sun_illuminance_lux`` and ``sky_illuminance_lux`` are the clear-sky
-daylight model of the IES Lighting Handbook (IES RP-21): the direct normal illuminance
-``E_dn = 127.5 klx * exp(-0.21 m)`` with the air mass ``m`` of Kasten and Young (1989), and the
-sky's horizontal illuminance ``E_h = 0.8 klx + 15.5 klx * sqrt(sin h)``. The sky is uniform, of
-luminance ``E_h / pi``, bluish; the ground outside is grey, of reflectance ``GROUND_ALBEDO``,
-lit by both. (The sky engineer's model, when it is merged, can replace ``daylight_for``'s
-figures.)
+**How much light.** The renderer's own sun and sky (``app.sky``: the sun's illuminance and
+colour of ``sun_light``, the baked Preetham sky and its ground of ``bake_sky``, or the user's
+sky photo), which the Cycles reference gets too: a sky photon carries the radiance of the
+baked sky in the direction it came from, so a window turned to the sunny side lets in more
+than one turned away. (Until stop 35 the photons had their own figures, the IES clear sky: a
+sun 18 % brighter than the one drawn and a uniform sky.)
 """
 
 from __future__ import annotations
@@ -63,19 +62,9 @@ from app.settings import SkySettings
 
 #: Rec. 709 luminance weights (as app.photons): a colour's luma is its lux / cd/m2 figure.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
-#: Extraterrestrial illuminance of the sun (IES RP-21), lux.
-SOLAR_LUX = 127_500.0
-#: Optical extinction of a clear sky (IES RP-21).
-CLEAR_EXTINCTION = 0.21
-#: The clear sky's horizontal illuminance, ``A + B sqrt(sin h)`` lux (IES RP-21).
-SKY_A_LUX, SKY_B_LUX = 800.0, 15_500.0
-#: Below the horizon the sky fades to dark at this solar elevation (civil twilight's end).
-TWILIGHT_DEG = -6.0
-#: Reflectance of the ground around the building (grass, paving: about 0.2).
-GROUND_ALBEDO = 0.2
-#: Colours (linear RGB, luma 1): the sky bluish, the ground neutral.
-SKY_RGB = (0.80, 1.00, 1.50)
-GROUND_RGB = (1.0, 1.0, 1.0)
+#: A sky this dim (cd/m2) sends no photons: the baked sky's night floor (app.sky_model
+#: NIGHT_LUMINANCE, 0.002 cd/m2 at its bluest 0.003) lights nothing a lamp does not drown.
+NIGHT_CD = 0.01
 #: Neither sky nor sun photons' first hits are stored: the renderer draws both direct terms.
 STORE_SKY_FIRST_HIT = False
 #: Portal cells along the bounding box's longest edge.
@@ -94,50 +83,6 @@ CROSSING_FLOOR = 1.0
 BOX_MARGIN = 0.01
 
 
-def _unit_luma(rgb) -> np.ndarray:
-    c = np.asarray(rgb, np.float64)
-    return c / float(c @ LUMA)
-
-
-def air_mass(elevation_deg: float) -> float:
-    """Relative optical air mass at a solar elevation (Kasten and Young 1989); inf below -0.5."""
-    h = float(elevation_deg)
-    if h <= -0.5:
-        return math.inf
-    return 1.0 / (math.sin(math.radians(h)) + 0.50572 * (h + 6.07995) ** -1.6364)
-
-
-def sun_illuminance_lux(elevation_deg: float) -> float:
-    """Clear-sky direct normal illuminance of the sun, lux (0 with the sun below the horizon).
-
-    ``127.5 klx * exp(-0.21 m)``, the IES clear-sky model, with the air mass ``m`` of Kasten and
-    Young: about 100 klx at noon in summer, 65 klx at 10 degrees, nothing at the horizon.
-    """
-    if not math.isfinite(elevation_deg) or elevation_deg <= 0.0:
-        return 0.0
-    return SOLAR_LUX * math.exp(-CLEAR_EXTINCTION * air_mass(elevation_deg))
-
-
-def sky_illuminance_lux(elevation_deg: float) -> float:
-    """Horizontal illuminance from a clear sky (without the sun), lux.
-
-    ``0.8 klx + 15.5 klx * sqrt(sin h)`` (IES clear sky) above the horizon; below it, the
-    0.8 klx fade linearly to nothing at ``TWILIGHT_DEG``.
-    """
-    h = float(elevation_deg)
-    if not math.isfinite(h) or h <= TWILIGHT_DEG:
-        return 0.0
-    if h <= 0.0:
-        return SKY_A_LUX * (h - TWILIGHT_DEG) / -TWILIGHT_DEG
-    return SKY_A_LUX + SKY_B_LUX * math.sqrt(math.sin(math.radians(h)))
-
-
-def sun_rgb(elevation_deg: float) -> np.ndarray:
-    """The sun's colour (linear RGB, luma 1): white high up, warmer towards the horizon."""
-    warm = math.exp(-max(float(elevation_deg), 0.0) / 12.0)  # 1 at the horizon, 0.08 at 30 deg
-    return _unit_luma((1.0, 1.0 - 0.25 * warm, 1.0 - 0.6 * warm))
-
-
 @dataclass(frozen=True)
 class Beam:
     """Parallel light: ``towards`` the source (unit), ``lux`` its RGB normal illuminance."""
@@ -153,10 +98,17 @@ class Daylight:
     beams: tuple[Beam, ...] = ()  # the sun (and directional lights are added at tracing)
     sky: tuple[float, float, float] = (0.0, 0.0, 0.0)  # sky luminance, cd/m2, linear RGB
     ground: tuple[float, float, float] = (0.0, 0.0, 0.0)  # ground luminance below the horizon
+    #: The ``sky.*`` settings whose baked sky (``app.sky.bake_sky``: the renderer's and the
+    #: reference's) gives each sky photon the radiance of the direction it came from; None: a
+    #: uniform ``sky`` above the horizon and ``ground`` below (``sky`` and ``ground`` are then
+    #: also the baked sky's means, for choosing cells).
+    sky_key: tuple | None = None
 
     @property
     def dark(self) -> bool:
-        return not self.beams and max(self.sky) <= 0.0 and max(self.ground) <= 0.0
+        """No sun and a sky no brighter than a moonless night's (``NIGHT_CD``): nothing for
+        photons to carry."""
+        return not self.beams and max(*self.sky, *self.ground) <= NIGHT_CD
 
 
 def daylight_for(sky: SkySettings | None) -> Daylight | None:
@@ -164,29 +116,82 @@ def daylight_for(sky: SkySettings | None) -> Daylight | None:
     if sky is None or not sky.enabled:
         return None
     return _daylight(
-        sky.time, sky.date, float(sky.latitude), float(sky.longitude), float(sky.north_deg)
+        sky.time,
+        sky.date,
+        float(sky.latitude),
+        float(sky.longitude),
+        float(sky.north_deg),
+        str(sky.image),
     )
 
 
 @functools.lru_cache(maxsize=64)  # the window asks on every timer tick
-def _daylight(time: str, date: str, lat: float, lon: float, north: float) -> Daylight:
-    from app.sky import sun_direction, sun_position  # astral, loaded only with daylight
+def _daylight(
+    time: str, date: str, lat: float, lon: float, north: float, image: str = ""
+) -> Daylight:
+    """The renderer's sun (``app.sky.sun_light``) and sky (``app.sky.bake_sky``), which
+    Cycles gets too. The IES clear-sky figures used before gave the sun 18 % more light than
+    the renderer's at 10:00 on the default date, and a sky as bright to the north as to the
+    south."""
+    from app.sky import sun_light  # astral, loaded only with daylight
 
-    where = SkySettings(
-        enabled=True, time=time, date=date, latitude=lat, longitude=lon, north_deg=north
-    )
-    elevation = sun_position(where).elevation_deg
-    e_sun = sun_illuminance_lux(elevation)
-    e_sky = sky_illuminance_lux(elevation)
+    key = (time, date, lat, lon, north, image)
+    where = _where(key)
     beams: tuple[Beam, ...] = ()
-    if e_sun > 0.0:
-        s = np.asarray(sun_direction(where), np.float64)
-        s = s / np.linalg.norm(s)
-        beams = (Beam(xyz(s), xyz(e_sun * sun_rgb(elevation))),)
-    sky_l = e_sky / math.pi * _unit_luma(SKY_RGB)
-    e_ground = e_sky + e_sun * max(math.sin(math.radians(elevation)), 0.0)
-    ground_l = GROUND_ALBEDO * e_ground / math.pi * _unit_luma(GROUND_RGB)
-    return Daylight(beams, xyz(sky_l), xyz(ground_l))
+    sun = sun_light(where)
+    if sun is not None and sun.intensity > 0.0:
+        towards = -np.asarray(sun.direction, np.float64)
+        towards = towards / np.linalg.norm(towards)
+        beams = (Beam(xyz(towards), xyz(np.asarray(sun.color) * sun.intensity)),)
+    image_rgb, dirs, solid = _baked_sky(key)
+    up = dirs[..., 1] > 0.0
+    cos_up = solid * np.maximum(dirs[..., 1], 0.0)
+    sky_l = (image_rgb * cos_up[..., None]).sum(axis=(0, 1)) / math.pi  # E_h / pi
+    ground_w = solid * ~up
+    ground_l = (image_rgb * ground_w[..., None]).sum(axis=(0, 1)) / max(ground_w.sum(), 1e-12)
+    return Daylight(beams, xyz(sky_l), xyz(ground_l), key)
+
+
+def _where(key: tuple) -> SkySettings:
+    time, date, lat, lon, north, image = key
+    return SkySettings(
+        enabled=True,
+        time=time,
+        date=date,
+        latitude=lat,
+        longitude=lon,
+        north_deg=north,
+        image=image,
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _baked_sky(key: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The baked sky of ``Daylight.sky_key``: radiance (H, W, 3), each texel's direction
+    (H, W, 3) and solid angle (H, W)."""
+    from app.sky import bake_sky, north_east
+    from app.sky_model import equirect_directions
+
+    where = _where(key)
+    image = np.asarray(bake_sky(where).image, np.float64)
+    north, east = north_east(where.north_deg)
+    dirs, solid = equirect_directions(image.shape[1], image.shape[0], north, east)
+    return image, dirs, np.asarray(solid)
+
+
+def sky_radiance_towards(key: tuple, d: np.ndarray) -> np.ndarray:
+    """The baked sky's radiance (M, 3) seen looking along unit directions ``d`` (M, 3): the
+    texel each direction falls in."""
+    from app.sky import north_east
+
+    image = _baked_sky(key)[0]
+    h, w = image.shape[:2]
+    north, east = north_east(_where(key).north_deg)  # the middle column faces north
+    theta = np.arccos(np.clip(d[:, 1], -1.0, 1.0))
+    phi = np.arctan2(d @ east, d @ north)
+    row = np.clip((theta / math.pi * h).astype(np.int64), 0, h - 1)
+    col = np.clip(((phi / (2.0 * math.pi) + 0.5) * w).astype(np.int64), 0, w - 1)
+    return image[row, col]
 
 
 def xyz(v) -> tuple[float, float, float]:
@@ -460,6 +465,7 @@ class DaylightSources:
     sky: np.ndarray  # (3,)
     ground: np.ndarray  # (3,)
     power_luma: np.ndarray  # (B + 1,) per source, lumen
+    sky_key: tuple | None = None  # Daylight.sky_key
 
     @staticmethod
     def build(daylight: Daylight, portal: Portal, caster: RayCaster) -> DaylightSources:
@@ -500,6 +506,7 @@ class DaylightSources:
             sky,
             ground,
             np.asarray(luma),
+            daylight.sky_key,
         )
 
     @property
@@ -541,8 +548,11 @@ class DaylightSources:
             cell = self.sky_cells[j]
             o[sel] = self._point(cell, u[sel, 1], u[sel, 2])
             d[sel] = _cosine_directions(-p.normal[cell], u[sel, 3], u[sel, 4])
-            came_from_sky = d[sel, 1] < 0.0  # going down: it came from above the horizon
-            radiance = np.where(came_from_sky[:, None], self.sky, self.ground)
+            if self.sky_key is not None:  # the baked sky, where the photon came from
+                radiance = sky_radiance_towards(self.sky_key, -d[sel])
+            else:
+                came_from_sky = d[sel, 1] < 0.0  # going down: it came from above the horizon
+                radiance = np.where(came_from_sky[:, None], self.sky, self.ground)
             face = np.maximum(self.sky_face_l[j] @ LUMA, 1e-300) * self.sky_q[j]
             # pdf of a cell is A_c luma(L_c) q_c / total, of a direction cos / pi: flux per photon
             # pi L total / (luma(L_c) q_c).

@@ -42,6 +42,7 @@ are deterministic, so one seed and one scene give byte-identical photon maps.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -285,7 +286,7 @@ def _daylight_sources(
     day = (
         Daylight(tuple(beams))
         if daylight is None
-        else Daylight(tuple(beams), daylight.sky, daylight.ground)
+        else dataclasses.replace(daylight, beams=tuple(beams))
     )
     if day.dark:
         return None
