@@ -77,9 +77,16 @@ from app.ambient_field import (
     usable,
 )
 from app.daylight_photons import scene_box
+from app.direct_light import (
+    cosine_direction,
+    direct,
+    direct_rgb,
+    sky_irradiance,
+    sky_irradiance_rgb,
+)
 from app.photons import _mesh_optics, _scene_geometry, emitting_side
 from app.raycast import RayCaster
-from app.scene import LIGHT_MIN_DIST2, Light, Scene, lamp_falloff, range_window
+from app.scene import Light, Scene
 from app.sky_light import lets_light_through, occluders, portal_from, through_portal
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -275,7 +282,7 @@ class AmbientProbe:
             origins = self.points + self.normal * side * self.eps
             rays = []
             for _ in range(GATHER_RAYS):
-                d = _cosine(self.normal * side, rng.random(n), rng.random(n))
+                d = cosine_direction(self.normal * side, rng.random(n), rng.random(n))
                 rays.append((d, *caster.cast_triangles(origins, d)))
                 if glow is not None:
                     self.emitted_rgb[k::2] += _glow_seen(glow, origins, d, rays[-1][1])
@@ -335,7 +342,7 @@ class AmbientProbe:
             o = at[met] + facing[met] * self.eps
             seen = np.zeros(len(met))
             for _ in range(SKY_HIT_RAYS):
-                d = _cosine(facing[met], rng.random(len(met)), rng.random(len(met)))
+                d = cosine_direction(facing[met], rng.random(len(met)), rng.random(len(met)))
                 _, tri = caster.cast_triangles(o, d)
                 out_of = np.flatnonzero(tri < 0)
                 seen[out_of] += through_portal(portal, o[out_of], d[out_of])
@@ -460,7 +467,7 @@ class AmbientProbe:
         lamps_only, lamps_only_rgb = np.zeros(2 * n), np.zeros((2 * n, 3))  # e0 but the sky's
         for k, (side, c) in enumerate(zip((1.0, -1.0), self.closure, strict=True)):
             drawn = np.zeros((n, 3))
-            rgb = _direct_rgb(
+            rgb = direct_rgb(
                 self.points, self.normal * side, lamps, self.caster, self.eps, True, drawn
             )
             beyond_rgb[k::2] = np.maximum(rgb - drawn, 0.0)
@@ -470,13 +477,11 @@ class AmbientProbe:
             lamps_only[k::2], lamps_only_rgb[k::2] = e, rgb
             if sky_sh is not None:
                 open_share = (1.0 - c)[:, None]
-                rgb = rgb + _sky_irradiance_rgb(self.normal * side, sky_sh) * open_share
-                e = e + _sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)
+                rgb = rgb + sky_irradiance_rgb(self.normal * side, sky_sh) * open_share
+                e = e + sky_irradiance(self.normal * side, sky_sh) * (1.0 - c)
             e0[k::2], e0_rgb[k::2] = e, rgb
             if suns:
-                e0_suns[k::2] = _direct(
-                    self.points, self.normal * side, suns, self.caster, self.eps
-                )
+                e0_suns[k::2] = direct(self.points, self.normal * side, suns, self.caster, self.eps)
         if glowing:  # the glowing surfaces' light: not drawn, so the even light carries it
             e0, e0_rgb = e0 + self.emitted_rgb @ LUMA, e0_rgb + self.emitted_rgb
             beyond_rgb = beyond_rgb + self.emitted_rgb
@@ -492,7 +497,7 @@ class AmbientProbe:
             at, facing = self.hit_at.reshape(-1, 3), self.hit_normal.reshape(-1, 3)
             met = hit.ravel()
             lit = np.zeros((len(at), 3))
-            lit[met] = _direct_rgb(
+            lit[met] = direct_rgb(
                 at[met].astype(np.float64),
                 facing[met].astype(np.float64),
                 suns,
@@ -503,7 +508,7 @@ class AmbientProbe:
         at_hits_rgb = sun_hits
         if sky_sh is not None:  # the sky's light at the hits themselves (_open_at_hits)
             facing = self.hit_normal.reshape(-1, 3).astype(np.float64)
-            sky_rgb = _sky_irradiance_rgb(np.nan_to_num(facing), sky_sh)
+            sky_rgb = sky_irradiance_rgb(np.nan_to_num(facing), sky_sh)
             at_hits_rgb = at_hits_rgb + (sky_rgb * self.hit_open().reshape(-1, 1)).reshape(
                 sun_hits.shape
             )
@@ -643,118 +648,6 @@ def _gradient(dn: np.ndarray, dv: np.ndarray, w: np.ndarray) -> tuple[float, flo
     except np.linalg.LinAlgError:
         return (0.0, 0.0, 0.0)
     return (float(g[0]), float(g[1]), float(g[2]))
-
-
-def bounce_falloff(d2: np.ndarray, range_m: float) -> np.ndarray:
-    """A lamp's irradiance per candela for its bounced light: the physical inverse square
-    with the renderer's 10 cm floor, without the range window (the renderer stops drawing a
-    lamp's direct light there; its light goes on and comes back off the walls)."""
-    del range_m
-    return 1.0 / np.maximum(np.asarray(d2, np.float64), LIGHT_MIN_DIST2)
-
-
-def _direct(
-    points: np.ndarray,
-    normal: np.ndarray,
-    lights: Sequence[Light],
-    caster: RayCaster,
-    eps: float,
-    whole_lamp: bool = False,
-) -> np.ndarray:
-    """Direct irradiance (lux, luminance of the light's colour) on faces with ``normal``;
-    ``whole_lamp``: without the range window (:func:`bounce_falloff`)."""
-    return _direct_rgb(points, normal, lights, caster, eps, whole_lamp) @ LUMA
-
-
-def _direct_rgb(
-    points: np.ndarray,
-    normal: np.ndarray,
-    lights: Sequence[Light],
-    caster: RayCaster,
-    eps: float,
-    whole_lamp: bool = False,
-    drawn: np.ndarray | None = None,
-) -> np.ndarray:
-    """:func:`_direct` in colour (N, 3): each light's colour times its intensity. ``drawn``
-    (N, 3), with ``whole_lamp``: the part the renderer draws (within the range window) is
-    added to it, from the same shadow rays."""
-    out = np.zeros((points.shape[0], 3))
-    for light in lights:
-        rgb = np.asarray(light.color, np.float64).reshape(3) * float(light.intensity)
-        lum = float(rgb @ LUMA)
-        if not (math.isfinite(lum) and lum > 0.0 and np.isfinite(rgb).all()):
-            continue
-        rgb = np.maximum(rgb, 0.0)
-        if light.kind == "directional":
-            d = -np.asarray(light.direction, np.float64)
-            d = d / max(float(np.linalg.norm(d)), 1e-12)
-            cos = normal @ d
-            lit = cos > 0.0
-            if not lit.any():
-                continue
-            origin = points[lit] + normal[lit] * eps
-            dist, _ = caster.cast_many(origin, np.broadcast_to(d, origin.shape))
-            e = np.where(np.isinf(dist), cos[lit], 0.0)
-            out[lit] += e[:, None] * rgb
-            continue
-        to_l = np.asarray(light.position, np.float64) - points
-        d2 = np.einsum("ij,ij->i", to_l, to_l)
-        dist_l = np.sqrt(d2)
-        ldir = to_l / np.maximum(dist_l, 1e-9)[:, None]
-        cos = np.einsum("ij,ij->i", normal, ldir)
-        falloff = bounce_falloff if whole_lamp else lamp_falloff
-        fall = falloff(d2, float(light.range_m)) * _cone(light, ldir)
-        lit = (cos > 0.0) & (fall > 0.0)
-        if not lit.any():
-            continue
-        origin = points[lit] + normal[lit] * eps
-        hit, _ = caster.cast_many(origin, ldir[lit])
-        seen = hit >= dist_l[lit] - 2.0 * eps
-        out[lit] += np.where(seen, cos[lit] * fall[lit], 0.0)[:, None] * rgb
-        if drawn is not None and whole_lamp:
-            window = range_window(d2[lit], float(light.range_m))
-            drawn[lit] += np.where(seen, cos[lit] * fall[lit] * window, 0.0)[:, None] * rgb
-    return out
-
-
-def _sky_irradiance(normal: np.ndarray, sky_sh: np.ndarray) -> np.ndarray:
-    """The open sky's irradiance (lux, luminance) on faces with ``normal``: pi SH(n)."""
-    from app.sky_model import sh_basis
-
-    white = sh_basis(normal) @ np.asarray(sky_sh, np.float64).reshape(9, 3)
-    return math.pi * np.maximum(white @ LUMA, 0.0)
-
-
-def _sky_irradiance_rgb(normal: np.ndarray, sky_sh: np.ndarray) -> np.ndarray:
-    """:func:`_sky_irradiance` in colour (N, 3): the sky's blue for the bounce's colour."""
-    from app.sky_model import sh_basis
-
-    white = sh_basis(normal) @ np.asarray(sky_sh, np.float64).reshape(9, 3)
-    return math.pi * np.maximum(white, 0.0)
-
-
-def _cone(light: Light, to_light: np.ndarray) -> np.ndarray:
-    """glTF's smooth spot falloff (render/shaders/shadows.glsl spot_cone); 1 for a point."""
-    if light.kind != "spot":
-        return np.ones(to_light.shape[0])
-    axis = np.asarray(light.direction, np.float64)
-    axis = axis / max(float(np.linalg.norm(axis)), 1e-12)
-    outer = min(max(float(light.outer_cone_deg), 0.0), 90.0)
-    inner = min(max(float(light.inner_cone_deg), 0.0), outer)
-    cos_o, cos_i = math.cos(math.radians(outer)), math.cos(math.radians(inner))
-    t = np.clip(((-to_light) @ axis - cos_o) / max(1e-3, cos_i - cos_o), 0.0, 1.0)
-    return t * t
-
-
-def _cosine(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
-    r = np.sqrt(u1)
-    phi = 2.0 * math.pi * u2
-    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t = np.cross(n, helper)
-    t /= np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
-    b = np.cross(n, t)
-    z = np.sqrt(np.maximum(1.0 - u1, 0.0))
-    return t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * z[:, None]
 
 
 @dataclass(frozen=True)

@@ -127,15 +127,20 @@ def _with_green(red: np.ndarray, blue: np.ndarray) -> np.ndarray:
 def cell_size(points: np.ndarray) -> float:
     """``SPACINGS`` times the points' median nearest-neighbour distance (half their spacing
     on a surface), within ``CELL_M``."""
-    from scipy.spatial import cKDTree
-
-    if len(points) < 2:
-        return CELL_M[1]
-    dist, _ = cKDTree(points).query(points, k=2)
-    spacing = SPACINGS * float(np.median(dist[:, 1]))
+    spacing = SPACINGS * median_spacing(points)
     if not math.isfinite(spacing):
         return CELL_M[1]
     return min(max(spacing, CELL_M[0]), CELL_M[1])
+
+
+def median_spacing(points: np.ndarray) -> float:
+    """The median distance from each point to its nearest neighbour; NaN for fewer than 2."""
+    from scipy.spatial import cKDTree
+
+    if len(points) < 2:
+        return math.nan
+    dist, _ = cKDTree(points).query(points, k=2)
+    return float(np.median(dist[:, 1]))
 
 
 AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
@@ -169,10 +174,7 @@ class FieldLayout:
         origin, c, dims = grid_around(pts, float(cell), SPREAD, MAX_CELLS)
         flat_n = int(np.prod(dims))
         flat, tent = tents(pts, origin, c, dims, SPREAD)
-        share = nrm * nrm  # by the squared components (they sum to 1)
-        bucket_of = np.where(nrm >= 0.0, [0, 2, 4], [1, 3, 5])  # (F, 3)
-        keys = (bucket_of[:, :, None] * flat_n + flat[:, None, :]).ravel()  # (F, 3, O)
-        w = (share[:, :, None] * tent[:, None, :]).ravel()
+        keys, w = facing_splat(nrm, flat, tent, flat_n)
         faces = np.repeat(np.arange(len(pts)), 3 * flat.shape[1])
         shape = (BUCKETS * flat_n, len(pts))
         splat = csr_matrix((w, (keys, faces)), shape=shape)  # duplicates summed
@@ -234,6 +236,17 @@ def tents(
     tent *= ((idx >= 0) & (idx < dims)).all(axis=2)
     flat = (idx[..., 2] * dims[1] + idx[..., 1]) * dims[0] + idx[..., 0]
     return np.clip(flat, 0, int(np.prod(dims)) - 1), tent
+
+
+def facing_splat(
+    nrm: np.ndarray, flat: np.ndarray, tent: np.ndarray, flat_n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's tent (``tents``) shared among the three grids its unit normal ``nrm``
+    faces, by the squared components (they sum to 1): the keys ``grid * flat_n + cell`` and
+    weights, both (P * 3 * O,), in point, axis, cell order."""
+    bucket_of = np.where(nrm >= 0.0, [0, 2, 4], [1, 3, 5])  # (P, 3)
+    keys = (bucket_of[:, :, None] * flat_n + flat[:, None, :]).ravel()
+    return keys, ((nrm * nrm)[:, :, None] * tent[:, None, :]).ravel()
 
 
 def usable(points: np.ndarray, facing: np.ndarray) -> np.ndarray:

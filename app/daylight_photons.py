@@ -115,30 +115,21 @@ def daylight_for(sky: SkySettings | None) -> Daylight | None:
     """The sun and sky of these settings, None when daylight is off (``sky.enabled``)."""
     if sky is None or not sky.enabled:
         return None
-    return _daylight(
-        sky.time,
-        sky.date,
-        float(sky.latitude),
-        float(sky.longitude),
-        float(sky.north_deg),
-        str(sky.image),
-    )
+    from app.sky import sky_key  # astral, loaded only with daylight
+
+    return _daylight(sky_key(sky))
 
 
 @functools.lru_cache(maxsize=64)  # the window asks on every timer tick
-def _daylight(
-    time: str, date: str, lat: float, lon: float, north: float, image: str = ""
-) -> Daylight:
-    """The renderer's sun (``app.sky.sun_light``) and sky (``app.sky.bake_sky``), which
-    Cycles gets too. The IES clear-sky figures used before gave the sun 18 % more light than
-    the renderer's at 10:00 on the default date, and a sky as bright to the north as to the
-    south."""
-    from app.sky import sun_light  # astral, loaded only with daylight
+def _daylight(key: tuple) -> Daylight:
+    """The renderer's sun (``app.sky.sun_light``) and sky (``app.sky.bake_sky``) for the
+    settings of ``key`` (``app.sky.sky_key``), which Cycles gets too. The IES clear-sky
+    figures used before gave the sun 18 % more light than the renderer's at 10:00 on the
+    default date, and a sky as bright to the north as to the south."""
+    from app.sky import sky_of_key, sun_light
 
-    key = (time, date, lat, lon, north, image)
-    where = _where(key)
     beams: tuple[Beam, ...] = ()
-    sun = sun_light(where)
+    sun = sun_light(sky_of_key(key))
     if sun is not None and sun.intensity > 0.0:
         towards = -np.asarray(sun.direction, np.float64)
         towards = towards / np.linalg.norm(towards)
@@ -152,27 +143,14 @@ def _daylight(
     return Daylight(beams, xyz(sky_l), xyz(ground_l), key)
 
 
-def _where(key: tuple) -> SkySettings:
-    time, date, lat, lon, north, image = key
-    return SkySettings(
-        enabled=True,
-        time=time,
-        date=date,
-        latitude=lat,
-        longitude=lon,
-        north_deg=north,
-        image=image,
-    )
-
-
 @functools.lru_cache(maxsize=8)
 def _baked_sky(key: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The baked sky of ``Daylight.sky_key``: radiance (H, W, 3), each texel's direction
     (H, W, 3) and solid angle (H, W)."""
-    from app.sky import bake_sky, north_east
+    from app.sky import bake_sky, north_east, sky_of_key
     from app.sky_model import equirect_directions
 
-    where = _where(key)
+    where = sky_of_key(key)
     image = np.asarray(bake_sky(where).image, np.float64)
     north, east = north_east(where.north_deg)
     dirs, solid = equirect_directions(image.shape[1], image.shape[0], north, east)
@@ -182,11 +160,11 @@ def _baked_sky(key: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def sky_radiance_towards(key: tuple, d: np.ndarray) -> np.ndarray:
     """The baked sky's radiance (M, 3) seen looking along unit directions ``d`` (M, 3): the
     texel each direction falls in."""
-    from app.sky import north_east
+    from app.sky import north_east, sky_of_key
 
     image = _baked_sky(key)[0]
     h, w = image.shape[:2]
-    north, east = north_east(_where(key).north_deg)  # the middle column faces north
+    north, east = north_east(sky_of_key(key).north_deg)  # the middle column faces north
     theta = np.arccos(np.clip(d[:, 1], -1.0, 1.0))
     phi = np.arctan2(d @ east, d @ north)
     row = np.clip((theta / math.pi * h).astype(np.int64), 0, h - 1)

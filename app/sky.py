@@ -98,6 +98,25 @@ def sun_light(settings: SkySettings | Settings) -> Light | None:
     )
 
 
+def sky_key(sky: SkySettings) -> tuple:
+    """What the sky depends on, hashable: time, date, latitude, longitude, north, photo."""
+    return (sky.time, sky.date, sky.latitude, sky.longitude, sky.north_deg, sky.image)
+
+
+def sky_of_key(key: tuple) -> SkySettings:
+    """The daylit settings of a :func:`sky_key`."""
+    time, date, lat, lon, north, image = key
+    return SkySettings(
+        enabled=True,
+        time=time,
+        date=date,
+        latitude=lat,
+        longitude=lon,
+        north_deg=north,
+        image=image,
+    )
+
+
 @dataclass
 class SkyBake:
     """The sky for one set of ``sky.*`` settings, baked on the CPU (not per frame)."""

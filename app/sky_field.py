@@ -40,9 +40,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from app.ambient_field import BUCKETS, grid_around, tents
+from app.ambient_field import BUCKETS, facing_splat, grid_around, median_spacing, tents
 from app.daylight_photons import Portal
 from app.raycast import RayCaster
 from app.scene import Scene
@@ -82,7 +81,7 @@ class SkyField:
     """The sky's share by place and facing. ``total`` and ``weight`` are (6, Z, Y, X) float32:
     per direction grid and cell, the sum of the points' weighted shares and of their weights;
     cell (i, j, k) spans ``origin + cell * [i, j, k]`` to ``origin + cell * [i + 1, j + 1,
-    k + 1]``. The shaders read :meth:`packed`: each cell's mean, in 8 bits."""
+    k + 1]``. The shaders read :meth:`packed`: each cell's mean."""
 
     origin: np.ndarray  # (3,) float64
     cell: float
@@ -258,16 +257,10 @@ def sky_field(
             caster, side_pos[rows], side_nrm[rows], n_cos, n_portal, portal, rng
         )
     weight = np.where(covered, 0.0, through)
-    return spread_field(side_pos, side_nrm, np.clip(seen, 0.0, 1.0), weight, spacing(pos))
-
-
-def spacing(points: np.ndarray) -> float:
-    """The median distance from each point to its nearest neighbour (0 for fewer than 2)."""
-    if len(points) < 2:
-        return 0.0
-    dist, _ = cKDTree(points).query(points, k=2)
-    value = float(np.median(dist[:, 1]))
-    return value if math.isfinite(value) else 0.0
+    apart = median_spacing(pos)
+    return spread_field(
+        side_pos, side_nrm, np.clip(seen, 0.0, 1.0), weight, apart if apart > 0.0 else 0.0
+    )
 
 
 def spread_field(
@@ -290,9 +283,7 @@ def spread_field(
         part = slice(start, start + 4096)
         p, n, s = pos[part], nrm[part], seen[part]
         flat, tent = tents(p, origin, cell, dims, SPREAD)
-        bucket = np.where(n >= 0.0, [0, 2, 4], [1, 3, 5])  # (P, 3)
-        keys = (bucket[:, :, None] * flat_n + flat[:, None, :]).ravel()
-        w = ((n * n * weight[part, None])[:, :, None] * tent[:, None, :]).ravel()
+        keys, w = facing_splat(n, flat, tent * weight[part, None], flat_n)
         received += np.bincount(keys, w, BUCKETS * flat_n)
         total += np.bincount(keys, w * np.repeat(s, 3 * flat.shape[1]), BUCKETS * flat_n)
     shape = (BUCKETS, int(dims[2]), int(dims[1]), int(dims[0]))

@@ -32,7 +32,7 @@ from app.photon_map import PhotonMap
 from app.refine import refine_on
 from app.scene import Light, Scene
 from app.settings import Settings
-from app.sky import scene_sky, sun_light
+from app.sky import scene_sky, sky_key, sun_light
 from app.tcr import finest_per_texture
 from render.ab_split import ABSplitPass, SplitFrame
 from render.ambient_source import AmbientSource
@@ -76,7 +76,7 @@ from render.reflections import ReflectionPass
 from render.shaders import ShaderLibrary
 from render.shadow_mask import ShadowMaskPass
 from render.shadows import ShadowPass
-from render.sky import DaylightPass, SkyPass, sky_key
+from render.sky import DaylightPass, SkyPass
 from render.upscale import render_size
 
 log = logging.getLogger(__name__)

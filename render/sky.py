@@ -20,24 +20,14 @@ import numpy as np
 
 from app.scene import Light
 from app.settings import SkySettings
-from app.sky import SkyBake, bake_sky, north_east, scene_sky
+from app.sky import SkyBake, bake_sky, north_east, scene_sky, sky_key
 from app.sky_field import SkyField, VisibilityBake
 from app.sky_model import SUN_HALF_ANGLE_DEG
 from render.gpu_scene import GpuScene
-from render.pass_graph import (
-    FrameContext,
-    RenderPass,
-    Resources,
-    bind_texture,
-    set_uniforms,
-)
+from render.pass_graph import FrameContext, RenderPass, Resources, bind_texture, set_uniforms
 from render.shaders import ShaderLibrary
 
 log = logging.getLogger(__name__)
-
-
-def sky_key(sky: SkySettings) -> tuple:
-    return (sky.time, sky.date, sky.latitude, sky.longitude, sky.north_deg, sky.image)
 
 
 class GpuSkyField:
@@ -48,22 +38,20 @@ class GpuSkyField:
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self.field: SkyField | None = None
-        self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float32))
-
-    def _texture(self, size: tuple[int, int, int], data: np.ndarray) -> moderngl.Texture3D:
-        tex = self.ctx.texture3d(size, 4, np.ascontiguousarray(data).tobytes(), dtype="f4")
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        tex.repeat_x = tex.repeat_y = tex.repeat_z = False
-        return tex
+        self.texture: moderngl.Texture3D | None = None
+        self.set(None)
 
     def set(self, field: SkyField | None) -> None:
-        self.texture.release()
+        if self.texture is not None:
+            self.texture.release()
         self.field = field
-        if field is None:
-            self.texture = self._texture((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float32))
-        else:
+        size, data = ((1, 1, 2), np.full((2, 1, 1, 4), -1.0, np.float32))
+        if field is not None:
             x, y, z = field.dims
-            self.texture = self._texture((x, y, 2 * z), field.packed())
+            size, data = (x, y, 2 * z), field.packed()
+        self.texture = self.ctx.texture3d(size, 4, np.ascontiguousarray(data).tobytes(), dtype="f4")
+        self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.texture.repeat_x = self.texture.repeat_y = self.texture.repeat_z = False
 
     def uniforms(self) -> dict[str, object]:
         f = self.field
@@ -75,7 +63,9 @@ class GpuSkyField:
         }
 
     def release(self) -> None:
-        self.texture.release()
+        if self.texture is not None:
+            self.texture.release()
+            self.texture = None
 
 
 @dataclass
@@ -102,7 +92,8 @@ class SkyFrame:
         light loop)."""
         sh = (self.bake.sh * self.scale).astype(np.float32)
         set_uniforms(prog, {}, optional={"u_sky_sh": sh.tobytes()})
-        if bind_texture(prog, "sky_field", self.field.texture, optional=True):
+        tex = self.field.texture
+        if tex is not None and bind_texture(prog, "sky_field", tex, optional=True):
             set_uniforms(prog, self.field.uniforms())
 
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from app import scenes
-from app.ambient import LUMA, AmbientProbe, _cosine, _direct, estimate_ambient
+from app.ambient import LUMA, AmbientProbe, estimate_ambient
+from app.direct_light import cosine_direction, direct
 from app.loaders import LoadOptions
 from app.photons import _mesh_optics
 from app.raycast import RayCaster
@@ -52,7 +53,7 @@ def _path_traced_at(scene, points, normals, eps: float, paths: int, seed: int) -
         nn = np.repeat(n[None], paths, 0)
         weight = np.ones(paths)
         for _ in range(BOUNCES):
-            d = _cosine(nn, rng.random(len(o)), rng.random(len(o)))
+            d = cosine_direction(nn, rng.random(len(o)), rng.random(len(o)))
             dist, t = caster.cast_triangles(o, d)
             hit = np.isfinite(dist) & (t >= 0)
             o, d, dist, t, weight = o[hit], d[hit], dist[hit], t[hit], weight[hit]
@@ -61,7 +62,7 @@ def _path_traced_at(scene, points, normals, eps: float, paths: int, seed: int) -
             at = o + d * dist[:, None]
             turned = tn[t] * np.where(np.einsum("ij,ij->i", tn[t], d) > 0.0, -1.0, 1.0)[:, None]
             weight = weight * rho[t]
-            out[k] += float((weight * _direct(at, turned, scene.lights, caster, eps)).sum())
+            out[k] += float((weight * direct(at, turned, scene.lights, caster, eps)).sum())
             o, nn = at + turned * eps, turned
     return out / paths
 
