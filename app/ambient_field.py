@@ -249,6 +249,36 @@ def facing_splat(
     return keys, ((nrm * nrm)[:, :, None] * tent[:, None, :]).ravel()
 
 
+def box_sum(a: np.ndarray) -> np.ndarray:
+    """The sum over each cell's 3 x 3 x 3 neighbourhood of grids ``a`` (G, Z, Y, X, ...)."""
+    out = a
+    for axis in (1, 2, 3):
+        pad = [(0, 0)] * a.ndim
+        pad[axis] = (1, 1)
+        p = np.pad(out, pad)
+        n = out.shape[axis]
+        out = (
+            np.take(p, range(0, n), axis=axis)
+            + np.take(p, range(1, n + 1), axis=axis)
+            + np.take(p, range(2, n + 2), axis=axis)
+        )
+    return out
+
+
+def fill_empty(mean: np.ndarray, steps: int) -> np.ndarray:
+    """``mean`` (G, Z, Y, X, ...) with its NaN (empty) cells given their filled neighbours'
+    mean, ``steps`` cells out from the filled ones (in place; returned)."""
+    for _ in range(steps):
+        empty = ~np.isfinite(mean)
+        if not empty.any():
+            break
+        filled = (~empty).astype(np.float64)
+        sums, counts = box_sum(np.where(empty, 0.0, mean)), box_sum(filled)
+        grow = empty & (counts > 0.0)
+        mean[grow] = sums[grow] / counts[grow]
+    return mean
+
+
 def usable(points: np.ndarray, facing: np.ndarray) -> np.ndarray:
     """Which faces have a finite place and facing (the others are left out of the field)."""
     pts = np.asarray(points, np.float64).reshape(-1, 3)

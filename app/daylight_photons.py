@@ -24,16 +24,21 @@ longest edge) and only the cells that light can cross into the room emit:
 * a beam's portal: rays from points on the room's surfaces (where the probe rays landed) cast
   towards the sun; those that escape mark where the beam comes in.
 
-A cell is picked in proportion to its area (projected, for a beam), the luminance and the number
-of probe rays that crossed it (plus ``CROSSING_FLOOR``), and its photons' flux is divided by the
-same weight, so the power through the portal stays exact while the middle of a window gets more
-photons than its grown border. The windows of a room are then the portals, found without being
-named. On the synthetic room of the tests (a 2 m2 window) 93% of the sun's and 88% of the sky's
-photons go in; on the bathroom and the white living room of the shared interiors, 70-83% and
-27-40% of the sun's and 76% and 36% of the sky's photons' first hits are seen from the spawn
-point, against 0.5-6% over the whole box, for 85-100% of the power the whole box lets in. A
-closed room has no portal (no daylight photons, said in the photon map's notes); a scene seen
-from outside (the spawn outside the box) has every cell.
+A cell is picked in proportion to its area (projected, for a beam), its light and the number
+of probe rays that crossed it plus ``CROSSING_FLOOR`` times their mean (``crossing_weight``),
+and its photons' flux is divided by the same weight, so the power through the portal stays
+exact while the middle of a window gets more photons than its grown border. The windows of a
+room are then the portals, found without being named. A sky photon's direction is drawn from
+the baked sky in proportion to the light it sends through the cell's face (``SkyTables``).
+
+Until stop 36 the floor was 1 crossing: a border cell that no probe ray crossed sent few
+photons, each with up to 1600x the flux of a busy cell's, and the few that found the window
+made the photon map's blotches. The effective number of photons (``(sum w)^2 / sum w^2`` over
+the stored photons' power, 262k paths) went 3k -> 155k in the white living room, 1.9k -> 157k
+in the bathroom, 56k -> 127k in the showroom and 59k -> 207k in the staircase, though fewer
+photons go in (on the synthetic room of the tests 28% of the sky's, against 88% before and
+one in twenty over the whole box). A closed room has no portal (no daylight photons, said in
+the photon map's notes); a scene seen from outside (the spawn outside the box) has every cell.
 
 **First hits.** The renderer draws the sun's direct light itself (a directional light, as the
 lamps'), so a sun photon's first hit is not stored, as a lamp's is not. The sky's light through
@@ -75,10 +80,11 @@ PROBE_POINTS, PROBE_RAYS = 1024, 64
 REFINE_RAYS = 1 << 18
 #: Surface points (for the beams' portals) sit this fraction of the box diagonal off the surface.
 SURFACE_OFFSET = 1e-3
-#: A portal cell is picked in proportion to its area, luminance and (probe crossings + this):
-#: busy cells (the middle of a window) get more photons, the grown border and grazing exits a
-#: few, and each photon's flux is divided by the same weight, so the power stays exact.
-CROSSING_FLOOR = 1.0
+#: A portal cell is picked in proportion to its area, light and (probe crossings + this times
+#: their mean): busy cells (the middle of a window) get more photons, the grown border and
+#: grazing exits fewer, and each photon's flux is divided by the same weight, so the power
+#: stays exact; no photon carries more than (1 + max / (4 mean)) times another's.
+CROSSING_FLOOR = 4.0
 #: The box around the geometry is this fraction of its diagonal larger on every side.
 BOX_MARGIN = 0.01
 
@@ -425,6 +431,94 @@ def _dilate(m: np.ndarray) -> np.ndarray:
 # -- emission ----------------------------------------------------------------------------------
 
 
+def crossing_weight(crossings: np.ndarray) -> np.ndarray:
+    """A portal cell's sampling weight from the probe rays that crossed it: the crossings plus
+    ``CROSSING_FLOOR`` times their mean over the cells (at least 1), so that the heaviest cell
+    weighs at most ``1 + max / (CROSSING_FLOOR * mean)`` times the lightest, and a photon
+    carries at most that many times another's flux."""
+    c = np.asarray(crossings, np.float64)
+    mean = float(c.mean()) if c.size else 0.0
+    return c + max(CROSSING_FLOOR * mean, 1.0)
+
+
+#: The box's six face normals, outward, in the order ``face_of`` numbers them.
+FACES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
+
+
+def face_of(normal: np.ndarray) -> np.ndarray:
+    """Index into ``FACES`` of axis-aligned outward normals (M, 3)."""
+    n = np.asarray(normal, np.float64).reshape(-1, 3)
+    axis = np.argmax(np.abs(n), axis=1)
+    return 2 * axis + (n[np.arange(len(n)), axis] < 0.0)
+
+
+@dataclass
+class SkyTables:
+    """The baked sky's texels as a distribution per box face: a sky photon entering through a
+    face with outward normal n comes from texel t with probability ``luma(L_t) cos_t
+    Omega_t / total[f]`` (cos_t = max(0, n . omega_t)), so that each carries the same luma. The
+    sky's radiance spans 500x between the sun's neighbourhood and the ground: with
+    cosine-weighted directions, 1 % of the photons carried most of the light in the white
+    living room, and its walls showed their blotches (docs/reference_flip.md, "Stop 36")."""
+
+    cdf: np.ndarray  # (6, T) cumulative luma(L) cos Omega over the texels, per face
+    centre_cos: np.ndarray  # (6, T) cos between each face's normal and each texel's centre
+    total: np.ndarray  # (6,) lumen per m2 through each face: the last of cdf
+    radiance: np.ndarray  # (T, 3)
+    shape: tuple[int, int]  # (H, W) of the equirectangular bake
+    north: np.ndarray
+    east: np.ndarray
+
+    @staticmethod
+    @functools.lru_cache(maxsize=4)
+    def of(key: tuple) -> SkyTables:
+        from app.sky import north_east, sky_of_key
+
+        image, dirs, solid = _baked_sky(key)
+        h, w = image.shape[:2]
+        radiance = image.reshape(-1, 3)
+        cos = np.clip(dirs.reshape(-1, 3) @ FACES.T, 0.0, None).T  # (6, T)
+        cdf = np.cumsum(cos * (radiance @ LUMA) * solid.reshape(-1), axis=1)
+        north, east = north_east(sky_of_key(key).north_deg)
+        return SkyTables(cdf, cos, cdf[:, -1].copy(), radiance, (h, w), north, east)
+
+    def sample(
+        self, face: np.ndarray, a: np.ndarray, b: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Travel directions (M, 3), into the box through faces ``face``, and the RGB each
+        carries per lumen / m2 of its face's ``total`` (luma 1 but for the cosine's change
+        across a texel), from uniform numbers ``a`` (the texel) and ``b`` (where in it)."""
+        h, w = self.shape
+        m = len(face)
+        texel = np.zeros(m, np.int64)
+        for f in np.unique(face):
+            sel = face == f
+            cdf = self.cdf[f]
+            texel[sel] = np.minimum(
+                np.searchsorted(cdf, a[sel] * cdf[-1], side="right"), len(cdf) - 1
+            )
+        row, col = np.divmod(texel, w)
+        # Where in the texel, uniformly by solid angle (cos theta uniform between its rows):
+        # two numbers from b, its high and low bits.
+        jr, whole = np.modf(b * 4096.0)
+        jc = whole / 4096.0
+        top, bottom = np.cos(row / h * math.pi), np.cos((row + 1) / h * math.pi)
+        ct = top + (bottom - top) * jc
+        st = np.sqrt(np.clip(1.0 - ct * ct, 0.0, None))
+        phi = ((col + jr) / w - 0.5) * 2.0 * math.pi
+        omega = st[:, None] * (np.cos(phi)[:, None] * self.north + np.sin(phi)[:, None] * self.east)
+        omega[:, 1] += ct
+        n = FACES[face]
+        # The texel was drawn for its centre's cos; the photon's own corrects it (at most 2x
+        # in the texels the face's plane cuts, which are drawn the least).
+        here = np.clip(np.einsum("ij,ij->i", omega, n), 0.0, None)
+        centre = self.centre_cos[face, texel]
+        ratio = np.where(centre > 0.0, here / np.where(centre > 0.0, centre, 1.0), 0.0)
+        luma = np.maximum(self.radiance[texel] @ LUMA, 1e-300)
+        rgb = self.radiance[texel] / luma[:, None] * ratio[:, None]
+        return -omega, rgb
+
+
 @dataclass
 class DaylightSources:
     """The beams and the sky, as photon sources over a portal: one source each, sky last."""
@@ -438,12 +532,13 @@ class DaylightSources:
     beam_power: np.ndarray  # (B, 3) lumen through the portal
     sky_cells: np.ndarray  # (K,) the sky's portal cells
     sky_q: np.ndarray  # (K,) their sampling weight (crossings + floor)
-    sky_cdf: np.ndarray  # (K,) cumulative area * luma(face luminance) * weight over them
-    sky_face_l: np.ndarray  # (K, 3) mean luminance a cell's photons come from
+    sky_cdf: np.ndarray  # (K,) cumulative area * face_w * weight over them
+    sky_face_w: np.ndarray  # (K,) luma of the light per m2 entering a cell's face (lumen / m2)
     sky: np.ndarray  # (3,)
     ground: np.ndarray  # (3,)
     power_luma: np.ndarray  # (B + 1,) per source, lumen
     sky_key: tuple | None = None  # Daylight.sky_key
+    tables: SkyTables | None = None  # the baked sky's directions, sampled by their light
 
     @staticmethod
     def build(daylight: Daylight, portal: Portal, caster: RayCaster) -> DaylightSources:
@@ -455,7 +550,7 @@ class DaylightSources:
             w = portal.area[facing] * (portal.normal[facing] @ s)
             towards.append(s)
             cells.append(facing)
-            qs.append(count + CROSSING_FLOOR)
+            qs.append(crossing_weight(count))
             cdfs.append(np.cumsum(w * qs[-1]))
             power.append(np.asarray(beam.lux, np.float64) * float(w.sum()))
         sky = np.asarray(daylight.sky, np.float64)
@@ -465,10 +560,15 @@ class DaylightSources:
         face_l = np.where(
             (up > 0.5)[:, None], sky, np.where((up < -0.5)[:, None], ground, 0.5 * (sky + ground))
         )
-        sky_w = portal.area[sky_cells] * (face_l @ LUMA)
-        sky_q = portal.crossings[sky_cells] + CROSSING_FLOOR
+        tables = None if daylight.sky_key is None else SkyTables.of(daylight.sky_key)
+        if tables is None:
+            face_w = np.pi * (face_l @ LUMA)  # a uniform sky and ground: pi L per m2
+        else:
+            face_w = tables.total[face_of(portal.normal[sky_cells])]
+        sky_w = portal.area[sky_cells] * face_w
+        sky_q = crossing_weight(portal.crossings[sky_cells])
         sky_cdf = np.cumsum(sky_w * sky_q)
-        luma = [float(p @ LUMA) for p in power] + [float(np.pi * sky_w.sum())]
+        luma = [float(p @ LUMA) for p in power] + [float(sky_w.sum())]
         return DaylightSources(
             portal,
             np.reshape(towards, (-1, 3)),
@@ -480,11 +580,12 @@ class DaylightSources:
             sky_cells,
             sky_q,
             sky_cdf,
-            face_l,
+            face_w,
             sky,
             ground,
             np.asarray(luma),
             daylight.sky_key,
+            tables,
         )
 
     @property
@@ -520,21 +621,28 @@ class DaylightSources:
         if sel.any():
             from app.photons import _cosine_directions
 
-            total = self.sky_cdf[-1]
-            k = np.searchsorted(self.sky_cdf, u[sel, 0] * total, side="right")
+            k = np.searchsorted(self.sky_cdf, u[sel, 0] * self.sky_cdf[-1], side="right")
             j = np.minimum(k, len(self.sky_cdf) - 1)
             cell = self.sky_cells[j]
             o[sel] = self._point(cell, u[sel, 1], u[sel, 2])
-            d[sel] = _cosine_directions(-p.normal[cell], u[sel, 3], u[sel, 4])
-            if self.sky_key is not None:  # the baked sky, where the photon came from
-                radiance = sky_radiance_towards(self.sky_key, -d[sel])
-            else:
+            if self.tables is not None:
+                # The baked sky, its directions drawn in proportion to their light on the face:
+                # every photon of a cell carries the same luma (no bright few by the sun).
+                # pdf of a cell is A_c face_w q_c / total, its light A_c face_w: flux per photon
+                # total / q_c, in the texel's colour.
+                d[sel], rgb = self.tables.sample(face_of(p.normal[cell]), u[sel, 3], u[sel, 4])
+                scale = self.sky_cdf[-1] / self.sky_q[j] / per_source[self.n_beams]
+                flux[sel] = rgb * scale[:, None]
+            else:  # a uniform sky above the horizon and ground below, cosine-weighted
+                d[sel] = _cosine_directions(-p.normal[cell], u[sel, 3], u[sel, 4])
                 came_from_sky = d[sel, 1] < 0.0  # going down: it came from above the horizon
                 radiance = np.where(came_from_sky[:, None], self.sky, self.ground)
-            face = np.maximum(self.sky_face_l[j] @ LUMA, 1e-300) * self.sky_q[j]
-            # pdf of a cell is A_c luma(L_c) q_c / total, of a direction cos / pi: flux per photon
-            # pi L total / (luma(L_c) q_c).
-            flux[sel] = np.pi * radiance * (total / face)[:, None] / per_source[self.n_beams]
+                face = np.maximum(self.sky_face_w[j], 1e-300) * self.sky_q[j]
+                # pdf of a cell is A_c face_w q_c / total, of a direction cos / pi: flux per
+                # photon pi L total / (face_w q_c).
+                flux[sel] = (
+                    np.pi * radiance * (self.sky_cdf[-1] / face)[:, None] / per_source[self.n_beams]
+                )
         return o, d, flux
 
     def _point(self, cell: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

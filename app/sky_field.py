@@ -41,7 +41,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.ambient_field import BUCKETS, facing_splat, grid_around, median_spacing, tents
+from app.ambient_field import (
+    BUCKETS,
+    box_sum,
+    facing_splat,
+    fill_empty,
+    grid_around,
+    median_spacing,
+    tents,
+)
 from app.daylight_photons import Portal
 from app.raycast import RayCaster
 from app.scene import Scene
@@ -95,20 +103,12 @@ class SkyField:
         ``DILATE`` cells: the points' mean, leaning on the neighbourhood's by
         ``PRIOR_WEIGHT``; an empty cell takes its filled neighbours' mean."""
         total, weight = self.total.astype(np.float64), self.weight.astype(np.float64)
-        t3, w3 = _box(total), _box(weight)
+        t3, w3 = box_sum(total), box_sum(weight)
         near = np.divide(t3, w3, out=np.zeros_like(t3), where=w3 > 1e-9)
         mean = np.full(total.shape, np.nan)
         some = (weight + PRIOR_WEIGHT * (w3 > 1e-9)) > 1e-9
         mean[some] = (total + PRIOR_WEIGHT * near)[some] / (weight + PRIOR_WEIGHT)[some]
-        for _ in range(DILATE):
-            empty = ~np.isfinite(mean)
-            if not empty.any():
-                break
-            filled = (~empty).astype(np.float64)
-            sums, counts = _box(np.where(empty, 0.0, mean)), _box(filled)
-            grow = empty & (counts > 0.0)
-            mean[grow] = sums[grow] / counts[grow]
-        return mean
+        return fill_empty(mean, DILATE)
 
     def packed(self) -> np.ndarray:
         """The grids as the shader reads them, (2 Z, Y, X, 4) float32 (half floats took 25 %
@@ -151,22 +151,6 @@ def _decode(read: np.ndarray, nrm: np.ndarray, vertex: np.ndarray) -> np.ndarray
     total = w.sum(axis=1)
     field = np.divide((w * read).sum(axis=1), total, out=np.zeros(len(w)), where=total > 0.0)
     return np.where(total > 0.0, field, vertex)
-
-
-def _box(a: np.ndarray) -> np.ndarray:
-    """The sum over each cell's 3 x 3 x 3 neighbourhood of each grid of ``a`` (6, Z, Y, X)."""
-    out = a
-    for axis in (1, 2, 3):
-        pad = [(0, 0)] * 4
-        pad[axis] = (1, 1)
-        p = np.pad(out, pad)
-        n = out.shape[axis]
-        out = (
-            np.take(p, range(0, n), axis=axis)
-            + np.take(p, range(1, n + 1), axis=axis)
-            + np.take(p, range(2, n + 2), axis=axis)
-        )
-    return out
 
 
 def surface_points(

@@ -128,3 +128,33 @@ def test_cache_under_coarse_shading_lights_every_block():
         dark = host.draw(fi)
     assert (e[np.flipud(lit)].sum(axis=-1) > 0).mean() > 0.95  # every surface pixel looked up
     assert img.astype(float).mean() > dark.astype(float).mean() + 1.0  # bounced light added
+
+
+def _floor_photons(n: int, size: float, power: float, seed: int, y: float = 0.0) -> PhotonMap:
+    """``n`` photons spread evenly over a ``size`` x ``size`` m floor at height ``y``, each of
+    ``power`` (grey), all arriving from above."""
+    rng = np.random.default_rng(seed)
+    pos = np.column_stack([rng.uniform(0, size, n), np.full(n, y), rng.uniform(0, size, n)])
+    down = np.tile([0.0, -1.0, 0.0], (n, 1))
+    from app.photon_map import encode_directions
+
+    return PhotonMap(pos, np.full((n, 3), power), encode_directions(down))
+
+
+def test_sparse_photons_leave_no_black_holes_in_the_cache():
+    """A floor with about 8 photons within the gather radius of any point (a dim hallway): the
+    irradiance read anywhere on it is the floor's even light, never 0. Reading only the cells
+    that hold photons, about one point in ten read black."""
+    size, r = 4.0, 0.3
+    n = int(8 / (np.pi * r * r) * size * size)  # 8 photons per disc of radius r
+    photons = _floor_photons(n, size, 1.0, seed=3)
+    cache = build_cache(photons, r)
+    rng = np.random.default_rng(4)
+    pts = np.column_stack(
+        [rng.uniform(0.5, size - 0.5, 2000), np.zeros(2000), rng.uniform(0.5, size - 0.5, 2000)]
+    )
+    got = cache.lookup(pts, np.tile([0.0, 1.0, 0.0], (2000, 1)))[:, 1]
+    even = n / (size * size)  # E of the floor: its photons' power per m2
+    assert (got <= 0.0).mean() < 0.005
+    assert abs(got.mean() / even - 1.0) < 0.15
+    assert np.percentile(got, 5) > 0.4 * even
