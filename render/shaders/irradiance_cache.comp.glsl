@@ -4,10 +4,11 @@
 // the same target the photon gather writes, so the lighting reads it unchanged.
 //
 // u_irradiance_cache is a 3D RGBA32F texture: the six normal directions' grids (+X, -X, +Y, -Y,
-// +Z, -Z) stacked along z, each u_ic_dims.z slices, one empty slice between them. rgb = E, a = 1
-// where a cell holds photons: the hardware's trilinear filter gives sum(w E) and sum(w), whose
-// ratio interpolates between the cells with photons only (an empty slice or cell has weight 0,
-// so nothing bleeds between directions or from empty air).
+// +Z, -Z) stacked along z, each u_ic_dims.z slices, one empty slice between them. rgb = a E,
+// a = the cell's weight (1 where its photons counted for the direction, 0.5 where it took its
+// neighbours' mean, 0 where nothing is known): the hardware's trilinear filter gives
+// sum(w a E) and sum(w a), whose ratio interpolates between the known cells only (an empty
+// slice or cell has weight 0, so nothing bleeds between directions or from empty air).
 layout(local_size_x = 8, local_size_y = 8) in;
 
 uniform sampler2D u_gb_normal;
