@@ -2,7 +2,7 @@
 
 ``ExposurePass`` (for automatic exposure and TCR's light term) reduces each eye's HDR colour
 to a 64 x 36 grid of mean log2 luminance of its surfaces (the void around a model, where
-nothing is drawn, is left out) in a fragment shader (on llvmpipe cheaper than a
+nothing is drawn, is left out; the sky, where it is drawn, is metered) in a fragment shader (on llvmpipe cheaper than a
 compute reduction) and
 starts an asynchronous copy of it into a pixel buffer; the next frame reads that buffer (the
 copy finished long before) and meters it (``app.exposure.metered_ev``), so the readback never
@@ -38,6 +38,7 @@ class ExposurePass(RenderPass):
 
     name = "exposure_meter"
     reads = ("hdr", "depth")
+    optional_reads = ("sky",)  # the sky drawn where no surface is: metered too
 
     def __init__(self, ctx: moderngl.Context, shaders: ShaderLibrary, res: Resources) -> None:
         super().__init__(ctx, shaders, res)
@@ -73,6 +74,8 @@ class ExposurePass(RenderPass):
             return
         prog = self.shaders.program("fullscreen.vert.glsl", "exposure_meter.frag.glsl")
         w, h = METER_CELLS
+        # The sky pass drew the sky where no surface is (it failed: the background stays).
+        sky = res.get("sky") is not None
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
         self.fbo.use()
         for index, tgt in enumerate(res.targets[:2]):
@@ -80,7 +83,10 @@ class ExposurePass(RenderPass):
             self.fbo.viewport = (*origin, w, h)
             bind_texture(prog, "eye_color", tgt.color)
             bind_texture(prog, "gb_depth", tgt.depth)
-            set_uniforms(prog, {"u_origin": origin, "u_cells": (w, h)})
+            set_uniforms(
+                prog,
+                {"u_origin": origin, "u_cells": (w, h), "u_meter_sky": sky},
+            )
             self.fullscreen(prog)
         self.fbo.viewport = (0, 0, 2 * w, h)
         # Into the pixel buffer without waiting; take() reads it during the next frame.

@@ -254,6 +254,28 @@ def test_a_model_in_the_void_is_metered_on_its_surfaces_alone(host):
     assert 60 < centre(img).mean() < 140  # the lamp at grey, not blown out by the void
 
 
+def test_a_model_under_the_sky_is_metered_with_its_sky(host):
+    """A small dark model seen from outside in daylight: the sky fills the view and is metered
+    as a camera would (it was left out as void: the meter read the model alone, or nothing,
+    and the sky of thousands of cd/m2 showed as a white screen)."""
+    speck = Scene(
+        "speck",
+        [quad("speck", (0, 1.6, -5), 0.2)],
+        [Material("m", (0.0, 0.0, 0.0, 1), roughness=1.0)],
+        [],
+        [],
+    ).sanitized()
+    fixed = show(host, speck, sky__enabled=True)
+    assert fixed.mean() > 250  # the lamp-lit room's fixed exposure: the sky blows out
+    for _ in range(3):
+        img = show(host, None, sky__enabled=True, render__exposure_mode="auto")
+    ev = host.renderer.exposure.base_ev
+    sky = host.read_hdr(0)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    assert 0.5 * np.median(sky) < white_luminance(ev) * 0.18 < 2 * np.median(sky)
+    assert 40 < img.mean() < 200 and (img < 250).mean() > 0.9  # a sky, not a white screen
+    host.settings.sky.enabled = False
+
+
 def test_black_blinding_and_1x1_frames_stay_finite(host):
     auto = dict(render__exposure_mode="auto")
     host.set_scene(wall(albedo=0.0))
