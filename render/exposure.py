@@ -2,12 +2,12 @@
 
 ``ExposurePass`` (for automatic exposure and TCR's light term) reduces each eye's HDR colour
 to a 64 x 36 grid of mean log2 luminance of its surfaces (the void around a model, where
-nothing is drawn, is left out; the sky, where it is drawn, is metered) in a fragment shader (on llvmpipe cheaper than a
-compute reduction) and
-starts an asynchronous copy of it into a pixel buffer; the next frame reads that buffer (the
-copy finished long before) and meters it (``app.exposure.metered_ev``), so the readback never
-waits for the frame being drawn. ``Exposure`` holds the eye's adaptation and gives each frame
-its exposure factor, its EV and the readout. The units and formulas are in ``app.exposure``.
+nothing is drawn, is left out; the sky, where it is drawn, is metered) in a fragment shader
+(on llvmpipe cheaper than a compute reduction) and starts an asynchronous copy of it into a
+pixel buffer; the next frame reads that buffer (the copy finished long before) and meters it
+(``app.exposure.metered_ev``), so the readback never waits for the frame being drawn.
+``Exposure`` holds the eye's adaptation and gives each frame its exposure factor, its EV and
+the readout. The units and formulas are in ``app.exposure``.
 """
 
 from __future__ import annotations
