@@ -104,3 +104,23 @@ class PhotonMap:
     @staticmethod
     def empty() -> PhotonMap:
         return PhotonMap(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.uint32))
+
+
+def merge(a: PhotonMap, b: PhotonMap) -> PhotonMap:
+    """The photons of two maps traced apart (other seeds) for the same scene and lights, as one
+    map of all their paths: each map's photon carries its light over its own paths, so its
+    power is weighted by its map's share of the paths. A map of no paths adds nothing; the
+    notes (the fallbacks the scene needed) are the first map's. Progressive photon refinement
+    (``app.indirect``) grows a map this way."""
+    total = a.emitted + b.emitted
+    if total <= 0:
+        return a
+    wa, wb = a.emitted / total, b.emitted / total
+    return PhotonMap(
+        np.concatenate([a.positions, b.positions]),
+        np.concatenate([a.power * np.float32(wa), b.power * np.float32(wb)]),
+        np.concatenate([a.direction_bits, b.direction_bits]),
+        total,
+        a.seed,
+        list(a.notes),
+    )

@@ -304,6 +304,17 @@ class PhotonSettings:
         hi=1 << 22,
         step=4096.0,
     )
+    refine_photons: int = _opt(
+        1 << 20,
+        "While you stand still, more light paths are traced in the background, up to this "
+        "many, and the bounced light grows smoother (with the precomputed method; walking "
+        "pauses it and keeps what is done). At or below the photons above: no more.",
+        label="Photons while standing",
+        unit="photons",
+        lo=0,
+        hi=1 << 24,
+        step=65536.0,
+    )
     radius_m: float = _opt(
         0.3,
         "How far around each point photons are collected; larger is smoother but blurs the light.",

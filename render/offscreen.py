@@ -33,6 +33,9 @@ class OffscreenHost:
         self.height = max(1, int(height))
         self.settings = settings or Settings()
         self.photon_cache = PhotonService(sky=lambda: self.settings.sky)
+        # The photon map grown as the window grows it while the viewer stands (traced at once,
+        # blocking); off: the map as traced, so frames, benches and tests stay as they were.
+        self.grow_photons = False
         self.trace_progress = trace_progress
         self.scene: Scene | None = None
         self.ctx = create_headless()
@@ -54,7 +57,9 @@ class OffscreenHost:
     def sync_photons(self) -> None:
         """Trace the photon map if the scene or the photon settings now ask for a new one
         (a no-op when nothing changed); called before every frame."""
-        photons = self.photon_cache.ensure(self.settings.photons, self.scene, self.trace_progress)
+        photons = self.photon_cache.ensure(
+            self.settings.photons, self.scene, self.trace_progress, refined=self.grow_photons
+        )
         with self.ctx:
             self.renderer.set_photons(photons)
 

@@ -34,7 +34,7 @@ from PyQt6.QtWidgets import (
 )
 
 from app.fileio import atomic_write_bytes
-from app.indirect import PhotonService, wanted
+from app.indirect import PhotonService, refine_target, wanted
 from app.paths import CameraPath
 from app.scene import Scene
 from app.session import Session
@@ -497,7 +497,9 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
     def _check_photons(self) -> None:
         """Keep the view's photon map in step with the scene and the settings; the service
         traces on its worker thread and hands the map over when done."""
-        current = self.photon_cache.poll(self.settings.photons, self.session.scene)
+        # The map grows while the viewpoint rests (not while walking: the frames need the CPU).
+        rest = not self.session.motion.viewpoint_moving
+        current = self.photon_cache.poll(self.settings.photons, self.session.scene, rest)
         error = self.photon_cache.take_error()
         if error:
             self.show_error("Cannot trace photons", error)
@@ -511,6 +513,11 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         if not wanted(s, scene):
             why = "turned off" if s.enabled == "off" else "the scene does not ask for it"
             stats["status"] = f"off ({why}; choose On above to add it)"
+        elif self.photon_cache.refining and self.photon_cache.map is not None:
+            paths = self.photon_cache.map.emitted
+            stats["status"] = (
+                f"on; smoothing while you stand: {paths:,} of {refine_target(s):,} photons"
+            )
         elif self.photon_cache.tracing:
             stats["status"] = "tracing photons…"
             stats["tracing"] = self.photon_cache.progress

@@ -137,7 +137,7 @@ def our_frames(
     per-frame budget of shadow redraws lifted), the baked occlusion done, and the last of
     ``SETTLE_FRAMES`` frames. ``still``: the picture the window shows once the viewer has
     stood there a while, refined (``render.refine`` on: jittered samples averaged until every
-    pixel has ``render.refine_samples``)."""
+    pixel has ``render.refine_samples``; the photon map grown to ``photons.refine_photons``)."""
     from app.paths import FIXED_DT
     from app.refine import needed
     from app.session import Session
@@ -150,6 +150,7 @@ def our_frames(
     session = Session(live)
     session.set_scene(scene)
     with OffscreenHost(2 * size[0], size[1], live) as host:
+        host.grow_photons = still  # the photon map grown as it grows while one stands
         host.set_scene(scene)
         host.set_text_image(None)
         for name, settings in variants.items():
