@@ -308,6 +308,27 @@ def test_photon_panel_traces_in_the_background_and_adds_indirect_light(window, q
     assert np.abs(grab(window).astype(int) - before.astype(int)).mean() < 0.5
 
 
+def test_standing_still_the_bounced_light_grows_smoother_in_the_background(window, qtbot):
+    s, panel, service = window.settings, window.photon_panel, window.photon_cache
+    window.load("showroom-gi")  # asks for indirect light; the precomputed method (default)
+    window.wait_for_load()
+    panel.controls.editors["photons.photons"].setValue(4096)
+    panel.controls.editors["photons.refine_photons"].setValue(1 << 18)
+    assert s.photons.refine_photons == 1 << 18
+    qtbot.waitUntil(lambda: service.map is not None and service.refining, timeout=30000)
+    first = service.traced
+    assert first is not None and first.emitted == 4096
+    assert "smoothing while you stand" in window._photon_stats()["status"]
+    qtbot.waitUntil(lambda: service.map.emitted == 1 << 18 and not service.tracing, timeout=120000)
+    window._check_photons()
+    assert window._photons_shown is service.map  # the view shows the grown map
+    grab(window)
+    panel.refresh_stats()
+    assert panel.labels["status"].text().startswith("on (")
+    assert int(panel.labels["stored"].text().replace(",", "")) > 32 * len(first)
+    assert not window.view.renderer.errors
+
+
 def test_quality_panel_measures_against_full_quality_and_shows_a_heat_map(window, qtbot):
     s = window.settings
     s.render.refine = "off"  # at rest refinement draws full quality: CPS's error is measured
