@@ -13,12 +13,12 @@ precomputed method (``photons.indirect = cache``) a map grows while the viewpoin
 next seed (``refine_seed``), merges the two (``app.photon_map.merge``: each weighted by its
 share of the paths, so the result is the estimate of all of them) and builds the cache over
 all; the renderer then swaps the map in. The noise of the bounced light halves in variance each
-step (at 1M paths the daylit staircase's blotchy ceiling is smooth; standing, its FLIP
-against Cycles goes 0.289 -> 0.244: docs/reference_flip.md, "Stop 37"). Walking cancels a step (the frames keep both cores) and keeps the
-map grown so far; a change of what the map depends on starts again from the traced map. The
-per-pixel gather keeps its photon count (its cost grows with every photon in the radius).
-Headless hosts trace the grown map at once when asked (``ensure(..., refined=True)``: the
-picture a viewer gets after standing, deterministic).
+step (at 1M paths the daylit staircase's blotchy ceiling is smooth; standing, its FLIP against
+Cycles goes 0.289 -> 0.244: docs/reference_flip.md, "Stop 37"). Walking cancels a step (the
+frames keep both cores) and keeps the map grown so far; a change of what the map depends on
+starts again from the traced map. The per-pixel gather keeps its photon count (its cost grows
+with every photon in the radius). Headless hosts trace the grown map at once when asked
+(``ensure(..., refined=True)``: the picture a viewer gets after standing, deterministic).
 """
 
 from __future__ import annotations
