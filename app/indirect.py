@@ -272,31 +272,9 @@ def grow(
 ) -> PhotonMap:
     """``base`` grown by one step: as many paths again (at most up to ``refine_target``),
     traced with ``refine_seed``, merged, and its cache built (on the worker thread)."""
-    from app.photons import trace_photons  # embree is loaded only when photons are wanted
-
-    start = time.perf_counter()
-    more = trace_photons(
-        scene,
-        min(base.emitted, refine_target(settings) - base.emitted),
-        refine_seed(settings.seed, base.emitted),
-        max_bounces=settings.max_bounces,
-        progress=progress,
-        cancel=cancel,
-        daylight=daylight,
-    )
-    grown = merge(base, more)
-    if settings.indirect == "cache":
-        from app.irradiance_cache import cache_for
-
-        cache_for(grown, settings.radius_m)
-    log.info(
-        "refined the photon map of %s to %d paths: %d photons stored, %.0f ms",
-        scene.name,
-        grown.emitted,
-        len(grown),
-        (time.perf_counter() - start) * 1e3,
-    )
-    return grown
+    count = min(base.emitted, refine_target(settings) - base.emitted)
+    seed = refine_seed(settings.seed, base.emitted)
+    return _traced(settings, scene, count, seed, progress, cancel, daylight, base)
 
 
 def trace(
@@ -306,26 +284,46 @@ def trace(
     cancel: Callable[[], bool] | None = None,
     daylight: Daylight | None = None,
 ) -> PhotonMap:
+    """The map of these settings (its cache built too: on the worker thread, not in the
+    first frame)."""
+    return _traced(settings, scene, settings.photons, settings.seed, progress, cancel, daylight)
+
+
+def _traced(
+    settings: PhotonSettings,
+    scene: Scene,
+    count: int,
+    seed: int,
+    progress: Callable[[float], None] | None,
+    cancel: Callable[[], bool] | None,
+    daylight: Daylight | None,
+    base: PhotonMap | None = None,
+) -> PhotonMap:
+    """``count`` paths traced from ``seed`` (merged into ``base`` when given), and for the
+    precomputed method their cache."""
     from app.photons import trace_photons  # embree is loaded only when photons are wanted
 
     start = time.perf_counter()
     photons = trace_photons(
         scene,
-        settings.photons,
-        settings.seed,
+        count,
+        seed,
         max_bounces=settings.max_bounces,
         progress=progress,
         cancel=cancel,
         daylight=daylight,
     )
-    if settings.indirect == "cache":  # here, on the worker thread, not in the first frame
+    if base is not None:
+        photons = merge(base, photons)
+    if settings.indirect == "cache":
         from app.irradiance_cache import cache_for
 
         cache_for(photons, settings.radius_m)
     log.info(
-        "traced %d photon paths in %s: %d photons stored, %.0f ms",
-        settings.photons,
+        "traced %d photon paths in %s (%d in the map): %d photons stored, %.0f ms",
+        count,
         scene.name,
+        photons.emitted,
         len(photons),
         (time.perf_counter() - start) * 1e3,
     )
