@@ -177,6 +177,20 @@ def build_cache(photons: PhotonMap, radius: float, cell: float | None = None) ->
     )
 
 
+def _class_directions() -> np.ndarray:
+    """(27, 6): 1 where a direction class (``_Photons.cls``) counts for a direction: +axis
+    for photons travelling against it, -axis for those travelling along it."""
+    ways = np.array([[c % 3, c // 3 % 3, c // 9] for c in range(27)])
+    out = np.zeros((27, BUCKETS))
+    for axis in range(3):
+        out[ways[:, axis] == 0, 2 * axis] = 1.0
+        out[ways[:, axis] == 2, 2 * axis + 1] = 1.0
+    return out
+
+
+_CLASS_DIRECTIONS = _class_directions()
+
+
 @dataclass
 class _Photons:
     """The photons a cache is built from, in a kd-tree."""
@@ -186,19 +200,13 @@ class _Photons:
     power: np.ndarray  # (N, 3)
     dirs: np.ndarray  # (N, 3) travel directions
     cls: np.ndarray = field(init=False)  # (N,) the class of each photon's direction
-    member: np.ndarray = field(init=False)  # (27, 6) the directions each class counts for
 
     def __post_init__(self) -> None:
         # Each photon's way along each axis (0: against it, 1: along none, 2: along it) as one
         # of 27 classes, so a cell's sums for the six directions come from one bincount per
-        # channel (a direction sums the classes whose way along its axis counts for it).
+        # channel (``_CLASS_DIRECTIONS``).
         way = (np.sign(self.dirs) + 1).astype(np.int64)
         self.cls = way[:, 0] + 3 * way[:, 1] + 9 * way[:, 2]
-        ways = np.array([[c % 3, c // 3 % 3, c // 9] for c in range(27)])
-        self.member = np.zeros((27, BUCKETS))  # class -> the directions it counts for
-        for axis in range(3):
-            self.member[ways[:, axis] == 0, 2 * axis] = 1.0  # travelling against +axis
-            self.member[ways[:, axis] == 2, 2 * axis + 1] = 1.0
 
     def gather(self, centre: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray]:
         """E (M, 6, 3) at the points ``centre`` for the six directions over a sphere of
@@ -219,10 +227,10 @@ class _Photons:
             idx = pid * 27 + self.cls[ph]
             size = (b - a) * 27
             count = np.bincount(idx, minlength=size).reshape(b - a, 27)
-            n[a:b] = np.rint(count @ self.member).astype(np.int64)
+            n[a:b] = np.rint(count @ _CLASS_DIRECTIONS).astype(np.int64)
             for ch in range(3):
                 power = np.bincount(idx, weights=self.power[ph, ch], minlength=size)
-                e[a:b, :, ch] = power.reshape(b - a, 27) @ self.member
+                e[a:b, :, ch] = power.reshape(b - a, 27) @ _CLASS_DIRECTIONS
         return e / (math.pi * r2), n
 
 
