@@ -28,6 +28,7 @@ float spot_cone(int i, vec3 L) {
 // Soft shadows' taps: a Poisson disk of radius 1 (the first SHADOW_TAPS used; all eight over
 // the shadow mask's footprint).
 const int SHADOW_TAPS = 4;
+const float CONTACT_M = 0.1;  // an occluder this near shadows with a hard edge (see below)
 const vec2 POISSON[8] = vec2[8](
     vec2(-0.613, 0.617), vec2(0.645, 0.493), vec2(0.421, -0.689), vec2(-0.299, -0.792),
     vec2(0.170, -0.040), vec2(-0.651, -0.168), vec2(-0.108, 0.357), vec2(0.892, -0.091));
@@ -86,7 +87,13 @@ float shadow_lookup(int i, vec3 P, vec3 N, vec3 L, float dist, float spread, int
     for (int k = 0; k < taps; ++k) {
         sum += shadow_tap(c0 + cu * POISSON[k].x + cv * POISSON[k].y, rect, texel.x);
     }
-    return sum / float(taps);
+    // Contact: shut in at P, but lit CONTACT_M nearer the light, the occluder is within a few
+    // centimetres, where a light's soft edge is a fraction of a millimetre: the point's own
+    // comparison. The disk's taps there lie on the surface carried on past the occluder (a
+    // cornice's top into the ceiling, the outside in the sun) and lit it in lines of light.
+    float here = shadow_tap(c0, rect, texel.x);
+    float nearer = shadow_tap(M * vec4(Po + L * CONTACT_M, 1.0), rect, texel.x);
+    return mix(sum / float(taps), here, step(here, 0.5) * step(0.5, nearer));
 #endif
 #endif
 }
