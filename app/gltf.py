@@ -37,6 +37,7 @@ SUPPORTED_REQUIRED_EXTENSIONS = frozenset(
         "KHR_materials_pbrSpecularGlossiness",
         "KHR_mesh_quantization",
         "KHR_materials_unlit",
+        "KHR_materials_transmission",
     }
 )
 

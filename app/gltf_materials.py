@@ -32,6 +32,12 @@ from app.scene import ALPHA_MODES, Material, Texture
 from app.scene_builder import float_list, float_or
 
 _GL_CLAMP_TO_EDGE = 33071
+# KHR_materials_transmission (Blender's glass, an OPAQUE material that transmits): drawn as
+# blended glass whose opacity is this at full transmission. The renderer has no refraction
+# pass; a clear pane still shows a faint film of its colour (real glass reflects about 8 % of
+# the light at its two faces), and it lets the sky's and the sun's light through as blended
+# glass does (no shadow, no photon stops at it).
+GLASS_ALPHA = 0.1
 
 
 class GltfImages:
@@ -119,6 +125,7 @@ class GltfMaterials:
         self._texture_keys: dict[tuple[int, bool, bool], int | None] = {}
         self._texture_digests: dict[tuple[bytes, bool], int] = {}
         self._decoded: dict[int, np.ndarray | None] = {}
+        self._uv_transforms: dict[tuple[str, Any], np.ndarray | None] = {}
 
     def used_images(self, material_indices: set[int]) -> set[int]:
         """Image indices the given materials sample (for the memory estimate)."""
@@ -148,6 +155,32 @@ class GltfMaterials:
             self._by_gltf[gltf_index] = len(self.materials)
             self.materials.append(material)
         return self._by_gltf[gltf_index]
+
+    def uv_transform(self, gltf_index: Any) -> np.ndarray | None:
+        """The KHR_texture_transform a primitive of material ``gltf_index`` bakes into its
+        uvs: a 3x3 matrix on glTF uvs, or None (no transform). A mesh has one set of uvs, so
+        one transform serves every map of the material: the base colour's, else the first
+        map's that has one; a map that asks for another gets a warning (once a material)."""
+        if not is_int(gltf_index):  # no material, or not an index (the default material)
+            return None
+        key = ("uv-transform", gltf_index)
+        if key not in self._uv_transforms:
+            spec = self._spec(gltf_index)
+            name = str((spec or {}).get("name") or f"material {gltf_index}")
+            matrices = []
+            for info in _texture_infos(spec, base_first=True):
+                ext = as_dict(info.get("extensions")).get("KHR_texture_transform")
+                matrices.append(_uv_matrix(ext, name, self.warnings))
+            chosen = next((m for m in matrices if m is not None), None)
+            if chosen is not None and any(
+                not np.allclose(chosen, np.eye(3) if m is None else m) for m in matrices
+            ):
+                self.warnings.append(
+                    f"material '{name}': its maps are placed by different texture "
+                    "transforms; all follow the base colour's"
+                )
+            self._uv_transforms[key] = chosen
+        return self._uv_transforms[key]
 
     def _spec(self, index: Any) -> dict[str, Any] | None:
         mats = as_list(self.doc.get("materials"))
@@ -185,6 +218,10 @@ class GltfMaterials:
         opaque = alpha_mode == "OPAQUE"
         if opaque:
             base[3] = 1.0  # glTF: alpha is ignored for OPAQUE materials
+        transmission = _transmission(exts.get("KHR_materials_transmission"))
+        if transmission > 0.0:  # glass as Blender exports it: see-through, blended
+            alpha_mode = "BLEND"
+            base[3] *= 1.0 - transmission * (1.0 - GLASS_ALPHA)
         normal_info = doc.get("normalTexture")
         occlusion_info = doc.get("occlusionTexture")
         return Material(
@@ -218,8 +255,6 @@ class GltfMaterials:
                 f"not a texture, {_fallback(role)}"
             )
             return None
-        if "KHR_texture_transform" in (info.get("extensions") or {}):
-            self.warnings.append(f"material '{material}': texture transform ignored")
         if is_int(info.get("texCoord")) and info["texCoord"] != 0:
             self.warnings.append(
                 f"material '{material}': its {role} texture uses texture coordinates "
@@ -316,7 +351,9 @@ def _fallback(role: str) -> str:
     return "using its colour only" if role == "base colour" else f"shaded without its {role} map"
 
 
-def _texture_infos(spec: dict[str, Any] | None) -> list[dict[str, Any]]:
+def _texture_infos(spec: dict[str, Any] | None, base_first: bool = False) -> list[dict[str, Any]]:
+    """The material's texture references; ``base_first``: the one that gives the colour
+    (a specular-glossiness material's diffuse map where it has no metallic-roughness) first."""
     if spec is None:
         return []
     pbr = as_dict(spec.get("pbrMetallicRoughness"))
@@ -330,5 +367,42 @@ def _texture_infos(spec: dict[str, Any] | None) -> list[dict[str, Any]]:
         spec.get("emissiveTexture"),
     ]
     if isinstance(sg, dict):
-        candidates.append(sg.get("diffuseTexture"))
+        diffuse = sg.get("diffuseTexture")
+        if base_first and "pbrMetallicRoughness" not in spec:
+            candidates.insert(0, diffuse)
+        else:
+            candidates.append(diffuse)
     return [c for c in candidates if isinstance(c, dict)]
+
+
+def _transmission(ext: Any) -> float:
+    """KHR_materials_transmission's factor in [0, 1] (0 without the extension; its texture is
+    not read)."""
+    if not isinstance(ext, dict):
+        return 0.0
+    return min(max(float_or(ext.get("transmissionFactor"), 0.0), 0.0), 1.0)
+
+
+def _uv_matrix(ext: Any, material: str, warnings: list[str]) -> np.ndarray | None:
+    """KHR_texture_transform as the 3x3 matrix on glTF uvs (translation x rotation x scale,
+    as the extension defines it); None without one. Values that are not finite numbers leave
+    the map as authored, with a warning."""
+    if not isinstance(ext, dict):
+        return None
+    offset = ext.get("offset", [0.0, 0.0])
+    scale = ext.get("scale", [1.0, 1.0])
+    rotation = ext.get("rotation", 0.0)
+    try:
+        ox, oy = (float(v) for v in offset)
+        sx, sy = (float(v) for v in scale)
+        angle = float(rotation)
+    except (TypeError, ValueError):
+        ox = float("nan")
+        sx = sy = oy = angle = 0.0
+    if not all(np.isfinite([ox, oy, sx, sy, angle])):
+        warnings.append(f"material '{material}': a texture transform that is not a number, ignored")
+        return None
+    c, s = np.cos(angle), np.sin(angle)
+    translation = np.array([[1.0, 0.0, ox], [0.0, 1.0, oy], [0.0, 0.0, 1.0]])
+    turn = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    return translation @ turn @ np.diag([sx, sy, 1.0])

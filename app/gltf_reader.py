@@ -235,11 +235,18 @@ class _Reader:
         tris = self._valid_triangles(name, tris, len(pos))
         has_colors = colors is not None
         material = self.materials.index(prim.get("material"), has_colors)
+        uv_matrix = self.materials.uv_transform(prim.get("material"))
+        if uv_matrix is not None and uvs is not None:  # KHR_texture_transform, baked
+            uvs = np.asarray(uvs, np.float64) @ uv_matrix[:2, :2].T + uv_matrix[:2, 2]
         mesh = _world_mesh(name, pos, normals, uvs, colors, tris, material, matrix)
         if self.materials.materials[material].normal_texture is not None:
             # Only a normal-mapped material needs a tangent frame: the file's when it has one
-            # that fits (and normals to go with it), else one made from the UVs.
-            if decoded is None and normals is not None:
+            # that fits (and normals to go with it) and no transform turned its uvs, else one
+            # made from the UVs.
+            turned = uv_matrix is not None and not (
+                uv_matrix[0, 1] == 0.0 == uv_matrix[1, 0] and (np.diag(uv_matrix)[:2] > 0).all()
+            )
+            if decoded is None and normals is not None and not turned:
                 tangents = self._optional(name, attrs, "TANGENT", ("VEC4",), len(pos))
             if tangents is not None:
                 mesh.tangents = transform_tangents(tangents, matrix[:3, :3])

@@ -469,3 +469,127 @@ def test_obj_mtl_bump_cutout_glow_and_glass(tmp_path: Path):
     assert alpha[:, :4].min() == 255 and alpha[:, 4:].max() == 0
     assert glass.alpha_mode == "BLEND" and glass.base_color[3] == pytest.approx(0.3)
     assert stone.alpha_mode == "OPAQUE"
+
+
+def _two_quads_gltf(tmp_path: Path, materials: list[dict], images: list[np.ndarray]) -> Path:
+    """A glTF of two unit quads facing the camera (+Z), uvs 0..1 left to right: a 6 m one 4 m
+    away with material 0, and a 1.2 m one 2 m away with material 1, both centred on the
+    view; one lamp lights both."""
+    import base64
+
+    pos = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], np.float32)
+    nrm = np.tile([0, 0, 1], (4, 1)).astype(np.float32)
+    uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)  # glTF: v = 0 at the top
+    idx = np.array([0, 1, 2, 0, 2, 3], np.uint16)
+    blob = pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
+    for i, img in enumerate(images):
+        (tmp_path / f"img{i}.png").write_bytes(_png(img))
+    prim = {"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}, "indices": 3}
+    doc = {
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 4.5}]}},
+        "buffers": [
+            {
+                "byteLength": len(blob),
+                "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode(),
+            }
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": o, "byteLength": n}
+            for o, n in [(0, 48), (48, 48), (96, 32), (128, 12)]
+        ],
+        "accessors": [
+            {
+                "bufferView": 0,
+                "componentType": 5126,
+                "count": 4,
+                "type": "VEC3",
+                "min": [-0.5, -0.5, 0],
+                "max": [0.5, 0.5, 0],
+            },
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"},
+        ],
+        "images": [{"uri": f"img{i}.png"} for i in range(len(images))],
+        "textures": [{"source": i} for i in range(len(images))],
+        "materials": materials,
+        "meshes": [{"primitives": [{**prim, "material": m}]} for m in range(2)],
+        "nodes": [
+            {"mesh": 0, "translation": [0, 1.6, -4], "scale": [6, 6, 1]},
+            {"mesh": 1, "translation": [0, 1.6, -2], "scale": [1.2, 1.2, 1]},
+            {"translation": [0, 1.6, -0.5], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+        ],
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "scene": 0,
+    }
+    path = tmp_path / "quads.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+RED_WALL = {"name": "red wall", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.05, 0.05, 1]}}
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_texture_transform_places_the_texture(host, path, tmp_path):
+    """KHR_texture_transform (how Blender and others export a tiled or shifted texture): a
+    red | blue texture shifted by half its width shows blue on the left, and tiled twice
+    shows red again at the quarter; before, it was ignored with a warning."""
+    pictures = {}
+    for label, ext in (
+        ("as authored", None),
+        ("shifted", {"offset": [0.5, 0.0]}),
+        ("tiled", {"scale": [2.0, 1.0]}),
+    ):
+        info: dict = {"index": 0}
+        if ext is not None:
+            info["extensions"] = {"KHR_texture_transform": ext}
+        tiles = {
+            "name": "tiles",
+            "pbrMetallicRoughness": {"baseColorTexture": info, "metallicFactor": 0.0},
+        }
+        folder = tmp_path / label.replace(" ", "-")
+        folder.mkdir()
+        scene = load_scene(
+            _two_quads_gltf(folder, [RED_WALL, tiles], [halves((230, 20, 20), (20, 20, 230))])
+        )
+        assert not any("transform" in w for w in scene.warnings), scene.warnings
+        pictures[label] = draw(host, scene, **path)
+    r, left = pixel_of(host, -0.45, 0.0, -2.0)  # near the pane's left edge
+    _, quarter = pixel_of(host, -0.15, 0.0, -2.0)  # a quarter of the way from its centre
+    authored, shifted, tiled = (pictures[k][r] for k in ("as authored", "shifted", "tiled"))
+    assert authored[left, 0] > 2 * authored[left, 2]  # red on the left
+    assert shifted[left, 2] > 2 * shifted[left, 0]  # shifted: blue on the left
+    assert authored[quarter, 0] > 2 * authored[quarter, 2]  # the left half is red ...
+    assert tiled[quarter, 2] > 2 * tiled[quarter, 0]  # ... tiled twice, blue at its quarter
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_transmissive_glass_shows_what_lies_behind(host, path, tmp_path):
+    """Blender exports glass as an OPAQUE material with KHR_materials_transmission: drawn
+    opaque, a window of it was a white pane that hid the garden and shut out the sun. It is
+    blended glass now: the red wall shows through it, and it casts no shadow."""
+    from app.sky_light import lets_light_through
+
+    seen = {}
+    for label, ext in (("plain", None), ("transmission", {"transmissionFactor": 1.0})):
+        glass = {
+            "name": "glass",
+            "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "roughnessFactor": 0.0},
+        }
+        if ext is not None:
+            glass["extensions"] = {"KHR_materials_transmission": ext}
+        folder = tmp_path / label
+        folder.mkdir()
+        scene = load_scene(_two_quads_gltf(folder, [RED_WALL, glass], []))
+        pane = next(
+            i for i, m in enumerate(scene.meshes) if scene.materials[m.material].name == "glass"
+        )
+        seen[label] = (draw(host, scene, **path), bool(lets_light_through(scene)[pane]))
+    r, c = pixel_of(host, 0.35, -0.35, -2.0)  # off the lamp's highlight in the pane
+    (plain, plain_clear), (clear, clear_clear) = seen["plain"], seen["transmission"]
+    assert plain[r, c, 1] > 0.5 * plain[r, c, 0]  # an opaque white pane
+    assert clear[r, c, 0] > 2.5 * clear[r, c, 1]  # the red wall through the glass
+    assert (plain_clear, clear_clear) == (False, True)  # no shadow, the sky's light through
