@@ -19,7 +19,7 @@ import numpy as np
 
 from app.errors import SceneLoadError
 from app.gltf_accessors import Blob, as_dict, as_list, is_int
-from app.scene import PointLight
+from app.scene import PointLight, Viewpoint
 from app.scene_builder import float_list, float_or
 
 _GLB_MAGIC = b"glTF"
@@ -256,6 +256,30 @@ def gltf_lights(doc: dict[str, Any], warnings: list[str]) -> list[PointLight]:
     for kind, count in skipped.items():
         warnings.append(f"{count} {kind} light{'s' if count != 1 else ''} not supported, ignored")
     return lights
+
+
+def gltf_camera_view(doc: dict[str, Any], warnings: list[str]) -> Viewpoint | None:
+    """The view of the file's first camera node (the one a designer saved in Blender or
+    SketchUp): its position, and the yaw and pitch it looks with (a camera looks down its own
+    -Z; roll is dropped, the viewer stays upright). None without a usable one."""
+    cameras = as_list(doc.get("cameras"))
+    nodes = as_list(doc.get("nodes"))
+    for index, matrix in gltf_node_walk(doc, []):
+        cam = as_dict(nodes[index]).get("camera")
+        if not (is_int(cam) and 0 <= cam < len(cameras)):
+            continue
+        position = matrix[:3, 3]
+        forward = -matrix[:3, 2]
+        length = float(np.linalg.norm(forward))
+        if not (np.isfinite(position).all() and np.isfinite(forward).all() and length > 1e-9):
+            warnings.append("the file's camera has no usable position or direction, not used")
+            return None
+        fx, fy, fz = forward / length
+        yaw = math.degrees(math.atan2(-fx, -fz)) if abs(fy) < 1.0 - 1e-9 else 0.0
+        pitch = math.degrees(math.asin(max(-1.0, min(1.0, fy))))
+        x, y, z = (float(v) for v in position)
+        return Viewpoint((x, y, z), yaw, pitch)
+    return None
 
 
 def _gltf_world_matrices(doc: dict[str, Any]) -> dict[int, np.ndarray]:

@@ -37,6 +37,7 @@ _TRY_UNITS_BEYOND_M = 50.0
 _UNITS = ((0.01, "centimetres"), (0.0254, "inches"), (0.001, "millimetres"), (0.3048, "feet"))
 _ROOM_HEAD_ROOM_M = (2.0, 8.0)  # the head room a room in the right units has
 _UNPLACEABLE = 1e15  # file units: larger coordinates are broken vertices, not a far model
+_CAMERA_FLOOR_M = 3.0  # the floor under a file's camera: the first surface facing up this near
 
 
 def place(scene: Scene, unit_scale: float | None) -> Scene:
@@ -71,6 +72,10 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
         x, y, z = (float(v) for v in np.asarray(light.position) * scale - offset)
         # kind, direction, cone and shadows kept
         lights.append(replace(light, position=(x, y, z), range_m=light.range_m * scale))
+    view = scene.authored_view
+    if view is not None:  # the file's camera moves with the model
+        x, y, z = (float(v) for v in np.asarray(view.position) * scale - offset)
+        view = replace(view, position=(x, y, z))
     warnings = list(scene.warnings)
     if offset.any():
         dx, dy, dz = (0.0 - float(v) for v in offset)
@@ -83,6 +88,7 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
         meshes=meshes,
         lights=lights,
         unit_scale=scale,
+        authored_view=view,
         origin_offset=(float(offset[0]), float(offset[1]), float(offset[2])),
         warnings=warnings,
     )
@@ -98,6 +104,7 @@ def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = Non
     caster = RayCaster(scene.triangles(), np.arange(scene.triangle_count))
     spawn, notes = safe_find_spawn(scene, caster)
     notes = list(scene.warnings) + notes
+    spawn = authored_spawn(scene, spawn, caster, notes)
     lights = scene.lights
     if not lights:
         progress.report(0.95, "Adding lights")
@@ -127,6 +134,31 @@ def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = Non
         warnings=notes,
         ray_caster=caster,
     ).sanitized(geometry=False)
+
+
+def authored_spawn(
+    scene: Scene, found: SpawnResult, caster: RayCaster, notes: list[str]
+) -> SpawnResult:
+    """Where the viewer starts: the file's own camera (``scene.authored_view``: the view its
+    author saved) when it lies near the model, else the spawn search's ``found``. The floor
+    under the camera is the first surface facing up within 3 m below it (none: viewed as
+    from outside, as the search's outside view)."""
+    view = scene.authored_view
+    if view is None:
+        return found
+    p = np.asarray(view.position, np.float64)
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
+    margin = max(float(np.linalg.norm(hi - lo)), 1.0)  # a camera framing the whole model
+    if not (np.isfinite(p).all() and (p > lo - margin).all() and (p < hi + margin).all()):
+        notes.append("the file's camera is far from the model: starting where one would stand")
+        return found
+    dist, tri = caster.cast_triangles(p[None], np.array([[0.0, -1.0, 0.0]]))
+    floor = None
+    if np.isfinite(dist[0]) and dist[0] <= _CAMERA_FLOOR_M and tri[0] >= 0:
+        a, b, c = np.asarray(scene.triangles()[tri[0]], np.float64)
+        if np.cross(b - a, c - a)[1] > 0.0:  # the hit faces up: a floor, a stair, a rug
+            floor = float(p[1] - dist[0])
+    return replace(found, viewpoint=view, floor_y=floor if floor is not None else found.floor_y)
 
 
 def unit_warning(scene: Scene, spawn: SpawnResult, caster: RayCaster | None = None) -> str | None:

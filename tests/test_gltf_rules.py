@@ -842,3 +842,65 @@ def test_progress_reports_and_cancels(tmp_path: Path) -> None:
     progress = Progress(cancel)
     with pytest.raises(LoadCancelled):
         load_scene(path, progress=progress)
+
+
+# ------------------------------------------------------------------------------------------
+# the file's camera: where the viewer starts
+# ------------------------------------------------------------------------------------------
+
+FLOOR = np.array([[-3, 0, 3], [3, 0, 3], [3, 0, -3], [-3, 0, -3]], np.float32)  # faces up
+
+
+def _quat(axis: tuple[float, float, float], degrees: float) -> np.ndarray:
+    h = np.radians(degrees) / 2.0
+    return np.array([*(np.sin(h) * np.asarray(axis, float)), np.cos(h)])
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    (ax, ay, az, aw), (bx, by, bz, bw) = a, b
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
+
+
+def _room_with_camera(**camera_node: Any) -> Gltf:
+    g = Gltf()
+    g.node(g.mesh(FLOOR, name="floor"))
+    g.doc["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.05}}]
+    g.node(camera=0, **camera_node)
+    return g
+
+
+def test_the_viewer_starts_at_the_files_camera(tmp_path: Path) -> None:
+    """A designer who saved a view in Blender (a glTF camera: turned 90 degrees left, looking
+    20 degrees down, 1.2 m above the floor) starts there, upright, the floor under it known."""
+    turn = _qmul(_quat((0, 1, 0), 90.0), _quat((1, 0, 0), -20.0))
+    g = _room_with_camera(translation=[1.0, 1.2, 2.0], rotation=turn.tolist())
+    scene = load_scene(g.write(tmp_path))
+    assert scene.spawn.position == pytest.approx((1.0, 1.2, 2.0), abs=1e-6)
+    assert scene.spawn.yaw_deg == pytest.approx(90.0, abs=1e-4)
+    assert scene.spawn.pitch_deg == pytest.approx(-20.0, abs=1e-4)
+    assert scene.floor_y == pytest.approx(0.0, abs=1e-6)
+    # in centimetres the camera moves with the model
+    options = LoadOptions(unit_scale=0.01)
+    scaled = load_scene(g.write(tmp_path / "cm"), options)
+    assert scaled.spawn.position == pytest.approx((0.01, 0.012, 0.02), abs=1e-6)
+
+
+def test_a_camera_far_away_or_broken_is_not_used(tmp_path: Path) -> None:
+    """A camera 500 m from a 6 m room (an exporter's default camera, a stray node) and one
+    whose matrix is NaN leave the viewer where the spawn search puts it, with a note."""
+    g = Gltf()
+    g.node(g.mesh(FLOOR, name="floor"))
+    searched = load_scene(g.write(tmp_path / "floor"))
+    far = load_scene(_room_with_camera(translation=[500.0, 1.6, 0.0]).write(tmp_path / "far"))
+    assert far.spawn == searched.spawn
+    assert any("camera is far" in w for w in far.warnings)
+    broken = load_scene(_room_with_camera(matrix=[float("nan")] * 16).write(tmp_path / "nan"))
+    assert broken.spawn == searched.spawn
+    assert any("camera has no usable position" in w for w in broken.warnings)
