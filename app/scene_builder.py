@@ -61,6 +61,8 @@ class SceneBuilder:
         self._texture_digests: dict[tuple[bytes, bool], int] = {}
         self._keep_alive: list[Any] = []  # objects whose id() is used as a key
         self._obj_untextured: dict[str, Any] = {}  # OBJ material name -> material without image
+        # our material index -> (scale, offset) of its colour map's uvs (MTL ``-s``, ``-o``)
+        self._obj_uv_placement: dict[int, tuple[tuple[float, float], tuple[float, float]]] = {}
         self._gltf_materials = self._index_gltf_materials()
         self._skipped_kinds: set[str] = set()
         self._name_uses: dict[str, int] = {}
@@ -113,6 +115,9 @@ class SceneBuilder:
             colors = np.repeat(face_colors, 3, axis=0)
             idx = np.arange(flat.size, dtype=np.int64).reshape(-1, 3)
         material = self._material_index(visual, colors is not None)
+        placement = self._obj_uv_placement.get(material)
+        if placement is not None and uvs is not None:  # the MTL's -s and -o, baked
+            uvs = uvs * np.asarray(placement[0]) + np.asarray(placement[1])
 
         rot = matrix[:3, :3]
         with np.errstate(invalid="ignore", over="ignore"):  # NaN vertices: dropped later
@@ -294,6 +299,13 @@ class SceneBuilder:
         maps = self._mtl().get(name, {})
         texture = None
         image = getattr(mat, "image", None)
+        diffuse = maps.get("map_kd")
+        if image is None and diffuse is not None and diffuse.path.is_file():
+            # trimesh takes the whole rest of the line for the file name, so a map with options
+            # (Blender's ``-s 2 2 1 oak.jpg``) was lost: read it here.
+            image = self._map_image(diffuse, name, "colour")
+        if diffuse is not None and diffuse.placed:
+            self._obj_uv_placement[len(self.materials)] = (diffuse.scale, diffuse.offset)
         cutout = self._map_image(maps.get("map_d"), name, "alpha")
         if image is not None and cutout is not None:
             image = _with_alpha(image, cutout)
@@ -493,6 +505,60 @@ class MtlMap:
     file: str  # as written
     path: Path  # resolved next to the MTL
     multiplier: float = 1.0  # ``-bm`` (bump maps)
+    scale: tuple[float, float] = (1.0, 1.0)  # ``-s u v``: the map tiles this many times
+    offset: tuple[float, float] = (0.0, 0.0)  # ``-o u v``: and is shifted by this
+
+    @property
+    def placed(self) -> bool:
+        return self.scale != (1.0, 1.0) or self.offset != (0.0, 0.0)
+
+
+# A map statement's options and how many values each takes (the MTL spec); ``-o``, ``-s`` and
+# ``-t`` take one to three numbers (the values that read as numbers are theirs).
+_MTL_OPTION_VALUES = {
+    "-blendu": 1,
+    "-blendv": 1,
+    "-bm": 1,
+    "-boost": 1,
+    "-cc": 1,
+    "-clamp": 1,
+    "-imfchan": 1,
+    "-mm": 2,
+    "-texres": 1,
+    "-type": 1,
+}
+_MTL_VECTOR_OPTIONS = ("-o", "-s", "-t")
+
+
+def mtl_map_statement(parts: list[str]) -> tuple[str, dict[str, list[float]]]:
+    """An MTL map statement's file name (which may hold spaces) and its options, from the
+    tokens after the statement's keyword: ``-s 2 2 1 oak floor.jpg`` is ``oak floor.jpg``
+    tiled twice. Blender writes ``-s`` and ``-o`` for a scaled or shifted texture."""
+    options: dict[str, list[float]] = {}
+    i = 0
+    while i < len(parts) - 1 and parts[i].startswith("-"):
+        key = parts[i].lower()
+        if key in _MTL_VECTOR_OPTIONS:
+            values: list[float] = []
+            while i + 1 < len(parts) - 1 and len(values) < 3 and _is_number(parts[i + 1]):
+                values.append(float(parts[i + 1]))
+                i += 1
+            options[key] = values
+            i += 1
+        elif key in _MTL_OPTION_VALUES:
+            n = _MTL_OPTION_VALUES[key]
+            options[key] = [float_or(v, 0.0) for v in parts[i + 1 : i + 1 + n]]
+            i += 1 + n
+        else:
+            break  # not an option: the file name starts here
+    return " ".join(parts[i:]), options
+
+
+def _is_number(token: str) -> bool:
+    try:
+        return math.isfinite(float(token))
+    except ValueError:
+        return False
 
 
 _MTL_MAPS = ("map_kd", "map_bump", "bump", "norm", "map_d", "map_ke")
@@ -518,12 +584,16 @@ def _obj_maps(obj_path: Path) -> dict[str, dict[str, MtlMap]]:
             if len(parts) >= 2 and parts[0].lower() == "newmtl":
                 current = " ".join(parts[1:])
             elif len(parts) >= 2 and parts[0].lower() in _MTL_MAPS and current is not None:
-                multiplier = 1.0
-                if "-bm" in parts[1:-1]:
-                    multiplier = float_or(parts[parts.index("-bm") + 1], 1.0)
-                file = parts[-1].replace("\\", "/")
+                name, options = mtl_map_statement(parts[1:])
+                file = name.replace("\\", "/")
+                s = options.get("-s", [])
+                o = options.get("-o", [])
                 result.setdefault(current, {})[parts[0].lower()] = MtlMap(
-                    file, mtl.parent / file, multiplier
+                    file,
+                    mtl.parent / file,
+                    (options.get("-bm") or [1.0])[0],
+                    (s[0] if s else 1.0, s[1] if len(s) > 1 else (s[0] if s else 1.0)),
+                    (o[0] if o else 0.0, o[1] if len(o) > 1 else 0.0),
                 )
     return result
 

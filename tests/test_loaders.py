@@ -487,3 +487,21 @@ def test_missing_texture_falls_back_to_colour(tmp_path: Path) -> None:
     scene = load_scene(tmp_path / "BoxTextured.gltf")  # CesiumLogoFlat.png left behind
     assert scene.materials[scene.meshes[0].material].texture is None
     assert any("CesiumLogoFlat.png" in w for w in scene.warnings), scene.warnings
+
+
+@pytest.mark.parametrize(
+    "tokens, file, options",
+    [
+        (["oak.jpg"], "oak.jpg", {}),
+        (["oak", "floor.jpg"], "oak floor.jpg", {}),
+        (["-s", "2", "3", "1", "oak.jpg"], "oak.jpg", {"-s": [2.0, 3.0, 1.0]}),
+        (["-o", "0.5", "-bm", "2", "a b.png"], "a b.png", {"-o": [0.5], "-bm": [2.0]}),
+        (["-clamp", "on", "-mm", "0", "1", "x.png"], "x.png", {"-clamp": [0.0], "-mm": [0, 1]}),
+        (["-2.png"], "-2.png", {}),  # a file named like an option is still the file
+        (["-s", "2", "7.png"], "7.png", {"-s": [2.0]}),  # the last token is the file's
+    ],
+)
+def test_mtl_map_statement_reads_options_and_names_with_spaces(tokens, file, options):
+    from app.scene_builder import mtl_map_statement
+
+    assert mtl_map_statement(tokens) == (file, options)

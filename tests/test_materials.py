@@ -13,7 +13,7 @@ from PIL import Image
 
 from app.camera import StereoCamera
 from app.frame import FrameInput
-from app.loaders import load_scene
+from app.loaders import LoadOptions, load_scene
 from app.scene import Material, Mesh, PointLight, Scene, Texture, Viewpoint
 from app.settings import Settings
 from app.tangents import generate_tangents
@@ -593,3 +593,31 @@ def test_transmissive_glass_shows_what_lies_behind(host, path, tmp_path):
     assert plain[r, c, 1] > 0.5 * plain[r, c, 0]  # an opaque white pane
     assert clear[r, c, 0] > 2.5 * clear[r, c, 1]  # the red wall through the glass
     assert (plain_clear, clear_clear) == (False, True)  # no shadow, the sky's light through
+
+
+def test_obj_colour_map_with_options_and_spaces_is_placed(host, tmp_path: Path):
+    """Blender's OBJ exporter writes a tiled texture as ``map_Kd -s 2 2 1 file``; the whole
+    rest of the line was taken as the file's name, so the floor lost its texture (and was
+    said to be missing). Now the options are read: the texture is there and tiles twice
+    (its red left half at the quarter, blue at the middle's left), and a name with a space
+    is found."""
+    (tmp_path / "wall.obj").write_text(
+        "mtllib wall.mtl\n"
+        "v -0.6 1.0 -2\nv 0.6 1.0 -2\nv 0.6 2.2 -2\nv -0.6 2.2 -2\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\n"
+        "usemtl tiles\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n"
+    )
+    (tmp_path / "wall.mtl").write_text(
+        "newmtl tiles\nKd 1 1 1\nmap_Kd -s 2.000000 1.000000 1.000000 -bm 1 red blue.png\n"
+    )
+    Image.fromarray(halves((230, 20, 20), (20, 20, 230))).save(tmp_path / "red blue.png")
+    scene = load_scene(tmp_path / "wall.obj", LoadOptions(unit_scale=1.0, split_edges_m=0.0))
+    tiles = scene.materials[scene.meshes[0].material]
+    assert tiles.texture is not None
+    assert not any("missing" in w or "could not" in w for w in scene.warnings), scene.warnings
+    assert scene.meshes[0].uvs[:, 0].max() == pytest.approx(2.0)
+    img = draw(host, scene)
+    r, c_red = pixel_of(host, -0.45, 0.0, -2.0)  # u 0.125 of the wall: 0.25 of the texture
+    _, c_blue = pixel_of(host, -0.15, 0.0, -2.0)  # u 0.375: 0.75 of the texture
+    assert img[r, c_red, 0] > 2 * img[r, c_red, 2], img[r, c_red]
+    assert img[r, c_blue, 2] > 2 * img[r, c_blue, 0], img[r, c_blue]
