@@ -78,9 +78,9 @@ def test_the_bounce_matches_a_path_trace_of_the_room(name):
     captured = {}
     by_place = probe._by_place
 
-    def capture(total, closure, levels, chroma):
+    def capture(total, closure, levels, chroma, daylight=False):
         captured["total"], captured["closure"] = total.copy(), closure.copy()
-        return by_place(total, closure, levels, chroma)
+        return by_place(total, closure, levels, chroma, daylight)
 
     probe._by_place = capture
     probe.estimate(scene.lights)
