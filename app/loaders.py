@@ -124,7 +124,8 @@ def _load(p: Path, options: LoadOptions, progress: Progress) -> Scene:
     if options.split_edges_m > 0:  # a vertex every half metre for the light kept per vertex
         scene = refine_scene(scene, options.split_edges_m)
     progress.report(0.85, "Finding where to stand")
-    scene = finish_scene(scene, options.unit_scale is None, progress)
+    any_up = p.suffix.lower() not in (".gltf", ".glb")  # glTF is Y up by its definition
+    scene = finish_scene(scene, options.unit_scale is None, progress, any_up)
     # Chunks and simplified levels for the renderer (app.lod), from the cache when it has them.
     lod_progress = progress.span(0.95, 1.0)
     attach_lods(scene.meshes, lod_progress.report)

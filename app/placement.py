@@ -94,15 +94,29 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
     )
 
 
-def finish_scene(scene: Scene, auto_units: bool, progress: Progress | None = None) -> Scene:
+def finish_scene(
+    scene: Scene, auto_units: bool, progress: Progress | None = None, any_up: bool = False
+) -> Scene:
     """Find where to stand, light a file without lights and check the units; never raises.
 
     ``scene`` is placed and sanitized; ``auto_units``: the units were not set (scene.unit_scale
-    "auto"), so an implausible size is worth a warning saying what was assumed.
+    "auto"), so an implausible size is worth a warning saying what was assumed; ``any_up``:
+    the file does not say which way is up (OBJ, PLY), so a model with no room to stand in
+    that has one with its Z axis up is turned upright (:func:`z_up_turned`).
     """
     progress = progress or Progress()
     caster = RayCaster(scene.triangles(), np.arange(scene.triangle_count))
     spawn, notes = safe_find_spawn(scene, caster)
+    storey = _ROOM_HEAD_ROOM_M
+    if any_up and not (spawn.floor_y is not None and storey[0] <= spawn.head_room <= storey[1]):
+        turned = z_up_turned(scene, spawn)
+        if turned is not None:
+            scene, caster = turned
+            spawn, notes = safe_find_spawn(scene, caster)
+            notes.append(
+                "the model was lying on its side (modelled with Z up, as 3ds Max, Rhino or a "
+                "scanner may save it): turned upright"
+            )
     notes = list(scene.warnings) + notes
     spawn = authored_spawn(scene, spawn, caster, notes)
     lights = scene.lights
@@ -159,6 +173,57 @@ def authored_spawn(
         if np.cross(b - a, c - a)[1] > 0.0:  # the hit faces up: a floor, a stair, a rug
             floor = float(p[1] - dist[0])
     return replace(found, viewpoint=view, floor_y=floor if floor is not None else found.floor_y)
+
+
+def z_up_turned(scene: Scene, found: SpawnResult) -> tuple[Scene, RayCaster] | None:
+    """``scene`` turned from Z up to Y up (x, y, z -> x, z, -y: normals, tangents and lights
+    alike) with its caster, when it holds a room a person stands in that way (a floor with
+    head room of a storey, as the units check asks) and at least as much floor as the room
+    ``found`` Y up, if any (a room read on its side stands on a wall, 9 or 12 m high); else
+    None."""
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # rows: new x, y, z
+    try:
+        tris = scene.triangles().astype(np.float64) @ turn.T
+        caster = RayCaster(tris.astype(np.float32), np.arange(len(tris)))
+        room = interior_spawn(tris.astype(np.float32), caster)
+    except Exception:  # noqa: BLE001 - a guess must not stop a load
+        log.exception("the Z-up check failed on %s", scene.name)
+        return None
+    lo_h, hi_h = _ROOM_HEAD_ROOM_M
+    if room is None or not lo_h <= room.head_room <= hi_h:
+        return None
+    if found.floor_y is not None and _floor_area(room) < _floor_area(found):
+        return None
+    meshes = []
+    for m in scene.meshes:
+        tangents = m.tangents
+        if tangents is not None:
+            tangents = np.asarray(tangents, np.float32).copy()
+            tangents[:, :3] = tangents[:, :3] @ turn.T
+        meshes.append(
+            replace(
+                m,
+                positions=(np.asarray(m.positions, np.float64) @ turn.T).astype(np.float32),
+                normals=(np.asarray(m.normals, np.float64) @ turn.T).astype(np.float32),
+                tangents=tangents,
+                lod=None,
+            )
+        )
+    def turned3(v) -> tuple[float, float, float]:
+        x, y, z = (float(c) for c in turn @ np.asarray(v, np.float64))
+        return x, y, z
+
+    lights = [
+        replace(lt, position=turned3(lt.position), direction=turned3(lt.direction))
+        for lt in scene.lights
+    ]
+    turned = replace(scene, meshes=meshes, lights=lights, ray_caster=None, ambient_probe=None)
+    return turned, RayCaster(turned.triangles(), np.arange(turned.triangle_count))
+
+
+def _floor_area(found: SpawnResult) -> float:
+    """The walkable floor a spawn search found (its level's points times their cell)."""
+    return len(found.level_points) * float(found.cell_area)
 
 
 def unit_warning(scene: Scene, spawn: SpawnResult, caster: RayCaster | None = None) -> str | None:

@@ -340,3 +340,36 @@ def test_loading_a_centimetre_file_with_and_without_unit_scale(tmp_path: Path) -
     assert_inside(scene, CLASS_LO, CLASS_HI)
     auto = load_scene(path)
     assert any("set scene.unit_scale to 0.01" in w for w in auto.warnings), auto.warnings
+
+
+def _z_up(meshes: list[Mesh]) -> list[Mesh]:
+    """The meshes as a Z-up program saves them (x, y, z -> x, -z, y)."""
+    out = []
+    for m in meshes:
+        p = np.asarray(m.positions, np.float64)
+        out.append(mesh(m.name, np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=1), m.indices))
+    return out
+
+
+def test_a_z_up_room_is_turned_upright(tmp_path: Path) -> None:
+    """3ds Max, Rhino and scanners may save a room with Z up: read as Y up it lay on its side,
+    with no floor to stand on, and the viewer looked at it from outside. It is turned upright:
+    one stands on its floor, inside, and a note says so. The same room saved Y up, and a
+    lone object either way, are left as they are."""
+    from app.loaders import load_scene
+
+    room = furnished_room(CLASS_LO, CLASS_HI, "classroom")
+    upright = load_scene(write_obj(tmp_path / "y_up.obj", room))
+    assert_inside(upright, CLASS_LO, CLASS_HI)
+    turned = load_scene(write_obj(tmp_path / "z_up.obj", _z_up(room)))
+    assert turned.floor_y == pytest.approx(0.0, abs=0.02), turned.warnings
+    x, y, z = turned.spawn.position
+    assert y == pytest.approx(EYE_HEIGHT_M, abs=0.02)
+    assert CLASS_LO[0] < x < CLASS_HI[0] and CLASS_LO[2] < z < CLASS_HI[2]
+    assert any("turned upright" in w for w in turned.warnings)
+    lo, hi = turned.bounds()
+    assert hi[1] - lo[1] == pytest.approx(3.0, abs=0.01)  # the ceiling 3 m over the floor
+    chair = [box_mesh("chair", (0, 0, 0), (0.5, 0.9, 0.5))]
+    for name, meshes in (("chair_y.obj", chair), ("chair_z.obj", _z_up(chair))):
+        lone = load_scene(write_obj(tmp_path / name, meshes))
+        assert lone.floor_y is None and not any("upright" in w for w in lone.warnings)
