@@ -209,6 +209,7 @@ def z_up_turned(scene: Scene, found: SpawnResult) -> tuple[Scene, RayCaster] | N
                 lod=None,
             )
         )
+
     def turned3(v) -> tuple[float, float, float]:
         x, y, z = (float(c) for c in turn @ np.asarray(v, np.float64))
         return x, y, z
