@@ -621,3 +621,22 @@ def test_obj_colour_map_with_options_and_spaces_is_placed(host, tmp_path: Path):
     _, c_blue = pixel_of(host, -0.15, 0.0, -2.0)  # u 0.375: 0.75 of the texture
     assert img[r, c_red, 0] > 2 * img[r, c_red, 2], img[r, c_red]
     assert img[r, c_blue, 2] > 2 * img[r, c_blue, 0], img[r, c_blue]
+
+
+def test_obj_colour_map_in_a_windows_subfolder_is_found(tmp_path: Path):
+    """An MTL written on Windows names its textures with backslashes
+    (``map_Kd textures\\oak floor.png``): the texture is found in the subfolder."""
+    (tmp_path / "floor.obj").write_text(
+        "mtllib floor.mtl\n"
+        "v 0 0 0\nv 1 0 0\nv 1 0 -1\nv 0 0 -1\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 1 0\n"
+        "usemtl oak\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n"
+    )
+    (tmp_path / "floor.mtl").write_text("newmtl oak\nKd 1 1 1\nmap_Kd textures\\oak floor.png\n")
+    (tmp_path / "textures").mkdir()
+    Image.new("RGB", (4, 4), (150, 90, 40)).save(tmp_path / "textures" / "oak floor.png")
+    scene = load_scene(tmp_path / "floor.obj", LoadOptions(unit_scale=1.0, split_edges_m=0.0))
+    oak = scene.materials[scene.meshes[0].material]
+    assert oak.texture is not None, scene.warnings
+    assert tuple(scene.textures[oak.texture].rgba[0, 0, :3]) == (150, 90, 40)
+    assert not any("missing" in w for w in scene.warnings), scene.warnings
