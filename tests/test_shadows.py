@@ -591,6 +591,22 @@ def test_the_sun_keeps_its_map_when_near_lamps_fill_the_atlas():
     assert sorted(fitted[k][0] for k in (1, 2, 3)) == [MAX_FACE // 2, MAX_FACE // 2, MAX_FACE]
 
 
+def seen_points(fi, rows: np.ndarray, cols: np.ndarray, caster: RayCaster):
+    """For left-eye pixels (rows, cols): the distance along each pixel's centre ray to what
+    ``caster`` finds there (inf: nothing) and the point it meets, both flattened."""
+    eye = fi.eyes[0]
+    ndc = np.stack(
+        [(cols + 0.5) / eye.width * 2 - 1, 1 - (rows + 0.5) / eye.height * 2], -1
+    ).reshape(-1, 2)
+    inv = eye.inverse_view_projection
+    near = np.c_[ndc, -np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
+    far = np.c_[ndc, np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
+    near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+    d = (far - near) / np.linalg.norm(far - near, axis=1)[:, None]
+    t, _ = caster.cast_triangles(near, d)
+    return t, near + d * np.where(np.isfinite(t), t, 0.0)[:, None]
+
+
 @pytest.mark.parametrize("detail", ["half", "quarter"])
 def test_a_skirting_top_seen_across_the_room_stays_in_the_shade(detail):
     """From the spawn, the north wall's skirting board's top is a pixel tall, and the mask has
@@ -604,19 +620,9 @@ def test_a_skirting_top_seen_across_the_room_stays_in_the_shade(detail):
         img, fi = hdr(host, scene, "soft", render__shadow_detail=detail)
         off, _ = hdr(host, scene, "off")
         assert not host.renderer.errors
-    eye = fi.eyes[0]
-    rows, cols = np.mgrid[300:500, 0 : eye.width]
-    ndc = np.stack(
-        [(cols + 0.5) / eye.width * 2 - 1, 1 - (rows + 0.5) / eye.height * 2], -1
-    ).reshape(-1, 2)
-    inv = eye.inverse_view_projection
-    near = np.c_[ndc, -np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
-    far = np.c_[ndc, np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
-    near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
-    d = (far - near) / np.linalg.norm(far - near, axis=1)[:, None]
+    rows, cols = np.mgrid[300:500, 0 : fi.eyes[0].width]
     caster = RayCaster(scene.triangles())
-    t, _ = caster.cast_triangles(near, d)
-    hit = near + d * np.where(np.isfinite(t), t, 0.0)[:, None]
+    t, hit = seen_points(fi, rows, cols, caster)
     top = np.isfinite(t) & (np.abs(hit[:, 1] - 0.1) < 0.002) & (hit[:, 2] > -3.0)
     top &= hit[:, 2] < -2.985  # the board's top: 10 cm up, 1.5 cm deep
     to_sun = np.tile(towards_sun, (len(hit), 1))
@@ -686,20 +692,10 @@ def test_a_cornice_under_the_ceiling_stays_in_the_shade():
             d: hdr(host, scene, "soft", render__shadow_detail=d)[0] for d in ("full", "half")
         }
         assert not host.renderer.errors
-    eye = fi.eyes[0]
-    rows, cols = np.mgrid[0 : eye.height, 0 : eye.width]
-    ndc = np.stack(
-        [(cols + 0.5) / eye.width * 2 - 1, 1 - (rows + 0.5) / eye.height * 2], -1
-    ).reshape(-1, 2)
-    inv = eye.inverse_view_projection
-    near = np.c_[ndc, -np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
-    far = np.c_[ndc, np.ones(len(ndc)), np.ones(len(ndc))] @ inv.T
-    near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
-    d = (far - near) / np.linalg.norm(far - near, axis=1)[:, None]
+    rows, cols = np.mgrid[0 : fi.eyes[0].height, 0 : fi.eyes[0].width]
     tris = occluders(scene)
     caster = RayCaster(tris, np.zeros(len(tris), np.int64))
-    t, _ = caster.cast_triangles(near, d)
-    hit = near + d * np.where(np.isfinite(t), t, 0.0)[:, None]
+    t, hit = seen_points(fi, rows, cols, caster)
     on_face = np.isfinite(t) & (np.abs((hit - (3.9999, 2.94, 0.0)) @ normal) < 1e-3)
     top = on_face & (hit[:, 1] > 2.995) & (np.abs(hit[:, 2]) < 0.8)  # its top 5 mm
     shut, _ = caster.cast_triangles(hit + normal * 1e-4, np.tile(towards_sun, (len(hit), 1)))
