@@ -355,3 +355,20 @@ def test_quality_panel_measures_against_full_quality_and_shows_a_heat_map(window
     assert np.abs(shown - hidden).mean() > 1.0  # the heat map was drawn over the view
     assert hidden.shape == plain.shape
     assert not window.view.renderer.errors
+
+
+def test_a_z_up_room_opens_upright_with_a_note(window, tmp_path):
+    """A room saved with Z up (as 3ds Max, Rhino or a scanner may) opens in the window with
+    the viewer standing inside it at eye height, and the log panel lists the note that it
+    was turned upright."""
+    from tests.test_spawn import CLASS_HI, CLASS_LO, _z_up, furnished_room, write_obj
+
+    path = write_obj(tmp_path / "z_up.obj", _z_up(furnished_room(CLASS_LO, CLASS_HI, "room")))
+    window.load(str(path))
+    window.wait_for_load()
+    assert window.session.scene.name == "z_up"
+    x, y, z = window.session.walker.position
+    assert y == pytest.approx(1.6, abs=0.05)  # standing on the floor, not on a wall
+    assert CLASS_LO[0] < x < CLASS_HI[0] and CLASS_LO[2] < z < CLASS_HI[2]
+    assert any("turned upright" in w for w in window.log_panel.scene_warnings)
+    assert grab(window).std() > 10  # the room is drawn
