@@ -258,28 +258,34 @@ def gltf_lights(doc: dict[str, Any], warnings: list[str]) -> list[PointLight]:
     return lights
 
 
-def gltf_camera_view(doc: dict[str, Any], warnings: list[str]) -> Viewpoint | None:
-    """The view of the file's first camera node (the one a designer saved in Blender or
-    SketchUp): its position, and the yaw and pitch it looks with (a camera looks down its own
-    -Z; roll is dropped, the viewer stays upright). None without a usable one."""
+def gltf_camera_views(doc: dict[str, Any], warnings: list[str]) -> list[tuple[str, Viewpoint]]:
+    """The views of the file's camera nodes (those a designer saved in Blender or SketchUp),
+    named after the node (else the camera, else "Camera N"), in the node walk's order: the
+    position, and the yaw and pitch each looks with (a camera looks down its own -Z; roll is
+    dropped, the viewer stays upright). One with no usable position or direction is left
+    out with a warning."""
     cameras = as_list(doc.get("cameras"))
     nodes = as_list(doc.get("nodes"))
+    out: list[tuple[str, Viewpoint]] = []
     for index, matrix in gltf_node_walk(doc, []):
-        cam = as_dict(nodes[index]).get("camera")
+        node = as_dict(nodes[index])
+        cam = node.get("camera")
         if not (is_int(cam) and 0 <= cam < len(cameras)):
             continue
+        name = str(node.get("name") or as_dict(cameras[cam]).get("name") or "")
+        name = name or f"Camera {len(out) + 1}"
         position = matrix[:3, 3]
         forward = -matrix[:3, 2]
         length = float(np.linalg.norm(forward))
         if not (np.isfinite(position).all() and np.isfinite(forward).all() and length > 1e-9):
-            warnings.append("the file's camera has no usable position or direction, not used")
-            return None
+            warnings.append(f"the file's camera '{name:.60}' has no usable position or direction")
+            continue
         fx, fy, fz = forward / length
         yaw = math.degrees(math.atan2(-fx, -fz)) if abs(fy) < 1.0 - 1e-9 else 0.0
         pitch = math.degrees(math.asin(max(-1.0, min(1.0, fy))))
         x, y, z = (float(v) for v in position)
-        return Viewpoint((x, y, z), yaw, pitch)
-    return None
+        out.append((name, Viewpoint((x, y, z), yaw, pitch)))
+    return out
 
 
 def _gltf_world_matrices(doc: dict[str, Any]) -> dict[int, np.ndarray]:

@@ -21,7 +21,7 @@ import numpy as np
 
 from app.errors import SceneLoadError
 from app.gltf import (
-    gltf_camera_view,
+    gltf_camera_views,
     gltf_lights,
     gltf_node_walk,
     gltf_wants_indirect,
@@ -76,7 +76,7 @@ def read_gltf(path: Path, max_texture_px: int, max_memory_mb: int, progress: Pro
         source=str(path),
         warnings=warnings,
         indirect=gltf_wants_indirect(doc),
-        authored_view=gltf_camera_view(doc, warnings),
+        cameras=gltf_camera_views(doc, warnings),
     )
 
 

@@ -72,10 +72,10 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
         x, y, z = (float(v) for v in np.asarray(light.position) * scale - offset)
         # kind, direction, cone and shadows kept
         lights.append(replace(light, position=(x, y, z), range_m=light.range_m * scale))
-    view = scene.authored_view
-    if view is not None:  # the file's camera moves with the model
+    cameras = []
+    for name, view in scene.cameras:  # the file's cameras move with the model
         x, y, z = (float(v) for v in np.asarray(view.position) * scale - offset)
-        view = replace(view, position=(x, y, z))
+        cameras.append((name, replace(view, position=(x, y, z))))
     warnings = list(scene.warnings)
     if offset.any():
         dx, dy, dz = (0.0 - float(v) for v in offset)
@@ -88,7 +88,7 @@ def place(scene: Scene, unit_scale: float | None) -> Scene:
         meshes=meshes,
         lights=lights,
         unit_scale=scale,
-        authored_view=view,
+        cameras=cameras,
         origin_offset=(float(offset[0]), float(offset[1]), float(offset[2])),
         warnings=warnings,
     )
@@ -153,13 +153,13 @@ def finish_scene(
 def authored_spawn(
     scene: Scene, found: SpawnResult, caster: RayCaster, notes: list[str]
 ) -> SpawnResult:
-    """Where the viewer starts: the file's own camera (``scene.authored_view``: the view its
+    """Where the viewer starts: the file's first camera (``scene.cameras``: the views its
     author saved) when it lies near the model, else the spawn search's ``found``. The floor
     under the camera is the first surface facing up within 3 m below it (none: viewed as
     from outside, as the search's outside view)."""
-    view = scene.authored_view
-    if view is None:
+    if not scene.cameras:
         return found
+    view = scene.cameras[0][1]
     p = np.asarray(view.position, np.float64)
     lo, hi = (np.asarray(b, np.float64) for b in scene.bounds())
     margin = max(float(np.linalg.norm(hi - lo)), 1.0)  # a camera framing the whole model

@@ -161,9 +161,9 @@ class Scene:
     # The model's own north for daylight (degrees from its -Z, counter-clockwise seen from
     # above, as sky.north_deg), or None: sky.north_deg decides.
     north_deg: float | None = None
-    # The view the file's author saved (a glTF camera), where the viewer starts; None: found by
-    # the spawn search (app.spawn).
-    authored_view: Viewpoint | None = None
+    # The views the file's author saved (glTF cameras), by name: the first near the model is
+    # where the viewer starts (app.placement.authored_spawn), all are in View > Viewpoints.
+    cameras: list[tuple[str, Viewpoint]] = field(default_factory=list)
     # A RayCaster over triangles() with triangle indices as owners, left by the loader so the
     # session does not build embree's hierarchy a second time; None: build one when needed.
     ray_caster: Any = field(default=None, repr=False, compare=False)

@@ -892,6 +892,20 @@ def test_the_viewer_starts_at_the_files_camera(tmp_path: Path) -> None:
     assert scaled.spawn.position == pytest.approx((0.01, 0.012, 0.02), abs=1e-6)
 
 
+def test_every_camera_in_the_file_is_a_viewpoint(tmp_path: Path) -> None:
+    """A designer's file with several saved views keeps them all, by name, in the file's
+    order (View > Viewpoints lists them); the first is where the viewer starts."""
+    g = _room_with_camera(translation=[1.0, 1.6, 2.0], name="Entrance")
+    g.doc["cameras"].append({"type": "perspective", "name": "Kitchen cam", "perspective": {}})
+    g.node(camera=1, translation=[-2.0, 1.5, -1.0], rotation=_quat((0, 1, 0), 180.0).tolist())
+    scene = load_scene(g.write(tmp_path))
+    assert [name for name, _ in scene.cameras] == ["Entrance", "Kitchen cam"]
+    kitchen = scene.cameras[1][1]
+    assert kitchen.position == pytest.approx((-2.0, 1.5, -1.0), abs=1e-6)
+    assert abs(kitchen.yaw_deg) == pytest.approx(180.0, abs=1e-4)
+    assert scene.spawn == scene.cameras[0][1]
+
+
 def test_a_camera_far_away_or_broken_is_not_used(tmp_path: Path) -> None:
     """A camera 500 m from a 6 m room (an exporter's default camera, a stray node) and one
     whose matrix is NaN leave the viewer where the spawn search puts it, with a note."""
@@ -903,4 +917,4 @@ def test_a_camera_far_away_or_broken_is_not_used(tmp_path: Path) -> None:
     assert any("camera is far" in w for w in far.warnings)
     broken = load_scene(_room_with_camera(matrix=[float("nan")] * 16).write(tmp_path / "nan"))
     assert broken.spawn == searched.spawn
-    assert any("camera has no usable position" in w for w in broken.warnings)
+    assert any("has no usable position" in w for w in broken.warnings)

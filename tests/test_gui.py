@@ -372,3 +372,20 @@ def test_a_z_up_room_opens_upright_with_a_note(window, tmp_path):
     assert CLASS_LO[0] < x < CLASS_HI[0] and CLASS_LO[2] < z < CLASS_HI[2]
     assert any("turned upright" in w for w in window.log_panel.scene_warnings)
     assert grab(window).std() > 10  # the room is drawn
+
+
+def test_the_files_saved_views_are_in_the_viewpoints_menu(window, tmp_path):
+    """A glTF with two cameras (views saved in Blender): the window starts at the first, and
+    View > Viewpoints lists both; choosing the second goes there."""
+    from tests.test_gltf_rules import _quat, _room_with_camera
+
+    g = _room_with_camera(translation=[1.0, 1.6, 2.0], name="Entrance")
+    g.doc["cameras"].append({"type": "perspective", "name": "Kitchen", "perspective": {}})
+    g.node(camera=1, translation=[-2.0, 1.5, -1.0], rotation=_quat((0, 1, 0), 180.0).tolist())
+    window.load(str(g.write(tmp_path)))
+    window.wait_for_load()
+    np.testing.assert_allclose(window.session.walker.position, [1.0, 1.6, 2.0], atol=1e-6)
+    actions = {a.text(): a for a in window.viewpoint_menu.actions()}
+    assert "Entrance (saved in the file)" in actions
+    actions["Kitchen (saved in the file)"].trigger()
+    np.testing.assert_allclose(window.session.walker.position, [-2.0, 1.5, -1.0], atol=1e-6)

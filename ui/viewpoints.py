@@ -87,6 +87,10 @@ class ViewpointActions:
         scene = self.session.scene
         if scene is None:
             return
+        for name, vp in scene.cameras:  # the views saved in the file (glTF cameras)
+            a = QAction(f"{name} (saved in the file)", self)
+            a.triggered.connect(lambda _=False, v=vp: self.go_to(v))
+            menu.addAction(a)
         saved = self._read_viewpoints().get(scene.name, {})
         for name, entry in saved.items() if isinstance(saved, dict) else ():
             vp = saved_viewpoint(entry)
