@@ -125,7 +125,7 @@ class GltfMaterials:
         self._texture_keys: dict[tuple[int, bool, bool], int | None] = {}
         self._texture_digests: dict[tuple[bytes, bool], int] = {}
         self._decoded: dict[int, np.ndarray | None] = {}
-        self._uv_transforms: dict[tuple[str, Any], np.ndarray | None] = {}
+        self._uv_transforms: dict[int, np.ndarray | None] = {}  # by glTF material
 
     def used_images(self, material_indices: set[int]) -> set[int]:
         """Image indices the given materials sample (for the memory estimate)."""
@@ -163,8 +163,7 @@ class GltfMaterials:
         map's that has one; a map that asks for another gets a warning (once a material)."""
         if not is_int(gltf_index):  # no material, or not an index (the default material)
             return None
-        key = ("uv-transform", gltf_index)
-        if key not in self._uv_transforms:
+        if gltf_index not in self._uv_transforms:
             spec = self._spec(gltf_index)
             name = str((spec or {}).get("name") or f"material {gltf_index}")
             matrices = []
@@ -179,8 +178,8 @@ class GltfMaterials:
                     f"material '{name}': its maps are placed by different texture "
                     "transforms; all follow the base colour's"
                 )
-            self._uv_transforms[key] = chosen
-        return self._uv_transforms[key]
+            self._uv_transforms[gltf_index] = chosen
+        return self._uv_transforms[gltf_index]
 
     def _spec(self, index: Any) -> dict[str, Any] | None:
         mats = as_list(self.doc.get("materials"))
@@ -396,10 +395,10 @@ def _uv_matrix(ext: Any, material: str, warnings: list[str]) -> np.ndarray | Non
         ox, oy = (float(v) for v in offset)
         sx, sy = (float(v) for v in scale)
         angle = float(rotation)
+        usable = bool(np.isfinite([ox, oy, sx, sy, angle]).all())
     except (TypeError, ValueError):
-        ox = float("nan")
-        sx = sy = oy = angle = 0.0
-    if not all(np.isfinite([ox, oy, sx, sy, angle])):
+        usable = False
+    if not usable:
         warnings.append(f"material '{material}': a texture transform that is not a number, ignored")
         return None
     c, s = np.cos(angle), np.sin(angle)

@@ -110,13 +110,12 @@ def finish_scene(
     storey = _ROOM_HEAD_ROOM_M
     if any_up and not (spawn.floor_y is not None and storey[0] <= spawn.head_room <= storey[1]):
         turned = z_up_turned(scene, spawn)
-        if turned is not None:
-            scene, caster = turned
-            spawn, notes = safe_find_spawn(scene, caster)
-            notes.append(
+        if turned is not None:  # the search's room, found on the turned triangles
+            scene, caster, spawn = turned
+            notes = [
                 "the model was lying on its side (modelled with Z up, as 3ds Max, Rhino or a "
                 "scanner may save it): turned upright"
-            )
+            ]
     notes = list(scene.warnings) + notes
     spawn = authored_spawn(scene, spawn, caster, notes)
     lights = scene.lights
@@ -155,8 +154,8 @@ def authored_spawn(
 ) -> SpawnResult:
     """Where the viewer starts: the file's first camera (``scene.cameras``: the views its
     author saved) when it lies near the model, else the spawn search's ``found``. The floor
-    under the camera is the first surface facing up within 3 m below it (none: viewed as
-    from outside, as the search's outside view)."""
+    under the camera is the first surface within 3 m below it (either way round: real files'
+    floors are often wound upside down), else the search's."""
     if not scene.cameras:
         return found
     view = scene.cameras[0][1]
@@ -166,26 +165,23 @@ def authored_spawn(
     if not (np.isfinite(p).all() and (p > lo - margin).all() and (p < hi + margin).all()):
         notes.append("the file's camera is far from the model: starting where one would stand")
         return found
-    dist, tri = caster.cast_triangles(p[None], np.array([[0.0, -1.0, 0.0]]))
-    floor = None
-    if np.isfinite(dist[0]) and dist[0] <= _CAMERA_FLOOR_M and tri[0] >= 0:
-        a, b, c = np.asarray(scene.triangles()[tri[0]], np.float64)
-        if np.cross(b - a, c - a)[1] > 0.0:  # the hit faces up: a floor, a stair, a rug
-            floor = float(p[1] - dist[0])
-    return replace(found, viewpoint=view, floor_y=floor if floor is not None else found.floor_y)
+    down, _ = caster.cast(p, (0.0, -1.0, 0.0), _CAMERA_FLOOR_M)
+    floor = float(p[1] - down) if math.isfinite(down) else found.floor_y
+    return replace(found, viewpoint=view, floor_y=floor)
 
 
-def z_up_turned(scene: Scene, found: SpawnResult) -> tuple[Scene, RayCaster] | None:
+def z_up_turned(scene: Scene, found: SpawnResult) -> tuple[Scene, RayCaster, SpawnResult] | None:
     """``scene`` turned from Z up to Y up (x, y, z -> x, z, -y: normals, tangents and lights
-    alike) with its caster, when it holds a room a person stands in that way (a floor with
-    head room of a storey, as the units check asks) and at least as much floor as the room
-    ``found`` Y up, if any (a room read on its side stands on a wall, 9 or 12 m high); else
-    None."""
+    alike) with its caster and the room found in it, when it holds a room a person stands in
+    that way (a floor with head room of a storey, as the units check asks) and at least as
+    much floor as the room ``found`` Y up, if any (a room read on its side stands on a wall,
+    9 or 12 m high); else None. The turn only swaps and negates coordinates, so the turned
+    scene's triangles are those the caster was built from."""
     turn = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # rows: new x, y, z
     try:
-        tris = scene.triangles().astype(np.float64) @ turn.T
-        caster = RayCaster(tris.astype(np.float32), np.arange(len(tris)))
-        room = interior_spawn(tris.astype(np.float32), caster)
+        tris = (scene.triangles().astype(np.float64) @ turn.T).astype(np.float32)
+        caster = RayCaster(tris, np.arange(len(tris)))
+        room = interior_spawn(tris, caster)
     except Exception:  # noqa: BLE001 - a guess must not stop a load
         log.exception("the Z-up check failed on %s", scene.name)
         return None
@@ -219,7 +215,7 @@ def z_up_turned(scene: Scene, found: SpawnResult) -> tuple[Scene, RayCaster] | N
         for lt in scene.lights
     ]
     turned = replace(scene, meshes=meshes, lights=lights, ray_caster=None, ambient_probe=None)
-    return turned, RayCaster(turned.triangles(), np.arange(turned.triangle_count))
+    return turned, caster, room
 
 
 def _floor_area(found: SpawnResult) -> float:

@@ -586,14 +586,10 @@ def _obj_maps(obj_path: Path) -> dict[str, dict[str, MtlMap]]:
             elif len(parts) >= 2 and parts[0].lower() in _MTL_MAPS and current is not None:
                 name, options = mtl_map_statement(parts[1:])
                 file = name.replace("\\", "/")
-                s = options.get("-s", [])
-                o = options.get("-o", [])
+                su, sv = (options.get("-s", []) + [1.0, 1.0])[:2]  # the spec's defaults
+                ou, ov = (options.get("-o", []) + [0.0, 0.0])[:2]
                 result.setdefault(current, {})[parts[0].lower()] = MtlMap(
-                    file,
-                    mtl.parent / file,
-                    (options.get("-bm") or [1.0])[0],
-                    (s[0] if s else 1.0, s[1] if len(s) > 1 else (s[0] if s else 1.0)),
-                    (o[0] if o else 0.0, o[1] if len(o) > 1 else 0.0),
+                    file, mtl.parent / file, (options.get("-bm") or [1.0])[0], (su, sv), (ou, ov)
                 )
     return result
 

@@ -389,3 +389,14 @@ def test_the_files_saved_views_are_in_the_viewpoints_menu(window, tmp_path):
     assert "Entrance (saved in the file)" in actions
     actions["Kitchen (saved in the file)"].trigger()
     np.testing.assert_allclose(window.session.walker.position, [-2.0, 1.5, -1.0], atol=1e-6)
+    # A bad state behind the action (a camera gone NaN): the viewer stays where it is.
+    from app.scene import Viewpoint
+
+    nan = float("nan")
+    window.session.scene.cameras.append(("Broken", Viewpoint((nan, nan, nan), nan, nan)))
+    window._refresh_viewpoints()
+    actions = {a.text(): a for a in window.viewpoint_menu.actions()}
+    actions["Broken (saved in the file)"].trigger()
+    np.testing.assert_allclose(window.session.walker.position, [-2.0, 1.5, -1.0], atol=1e-6)
+    assert np.isfinite([window.session.walker.yaw_deg, window.session.walker.pitch_deg]).all()
+    assert grab(window).std() > 10  # still drawing
