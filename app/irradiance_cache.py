@@ -45,6 +45,10 @@ from app.photon_map import PhotonMap
 
 BUCKETS = 6  # +X, -X, +Y, -Y, +Z, -Z
 MAX_CELLS = 1 << 19  # cells in the dense grid at most (the cell grows beyond): 6 x 8 MB
+# GL 4.5 promises 3D textures of 2048 texels a side: the six grids stack (with an empty slice
+# between them) along the axis with the fewest cells (a storey's height, not a 60 m hall's
+# length, which overflowed the texture and lost the light), and the cell grows until they fit.
+MAX_TEXELS = 2048
 MIN_PHOTONS = 32  # a cell where no direction counts this many gathers again over 2r
 GROW = (2.0,)  # the wider sphere's radius, in gather radii
 FILL_CELLS = 2  # empty cells this many cells from known ones take their mean...
@@ -74,6 +78,11 @@ class IrradianceCache:
     def nbytes(self) -> int:
         return int(self.values.nbytes)
 
+    @property
+    def stack_axis(self) -> int:
+        """The axis (0 x, 1 y, 2 z) the GPU texture stacks the six grids along."""
+        return stack_axis(self.dims)
+
     def lookup(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """E (M, 3) at world points with unit normals, as the shader interpolates it (a CPU
         twin of ``irradiance_cache.comp.glsl``, for tests and tools)."""
@@ -100,6 +109,18 @@ class IrradianceCache:
             e = np.where(acc[:, 3:4] > 1e-6, acc[:, :3] / safe[:, None], 0.0)
             out += n2[:, axis : axis + 1] * e
         return out
+
+
+def stack_axis(dims) -> int:
+    """The axis with the fewest cells (the first of equals)."""
+    return int(np.argmin(np.asarray(dims)))
+
+
+def fits_texture(dims) -> bool:
+    """Whether a grid of ``dims`` cells, its six directions stacked along ``stack_axis``,
+    fits a 3D texture of ``MAX_TEXELS`` a side."""
+    d = np.asarray(dims, np.int64)
+    return int(d.max()) <= MAX_TEXELS and BUCKETS * (int(d.min()) + 1) <= MAX_TEXELS
 
 
 def empty_cache(radius: float) -> IrradianceCache:
@@ -134,7 +155,7 @@ def build_cache(photons: PhotonMap, radius: float, cell: float | None = None) ->
         raise ValueError(f"cache cell must be a positive length, not {cell!r}")
     while True:  # a dense grid: grow the cell until it fits
         dims = np.maximum(np.ceil((hi - lo) / c + 1e-6).astype(np.int64), 1)
-        if int(np.prod(dims)) <= MAX_CELLS:
+        if int(np.prod(dims)) <= MAX_CELLS and fits_texture(dims):
             break
         c *= 1.25
     origin = lo - 0.5 * (dims * c - (hi - lo))  # centre the photons in the grid

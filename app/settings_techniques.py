@@ -294,7 +294,7 @@ class PhotonSettings:
         choice_labels={"cache": "Precomputed (fast)", "gather": "Collected per pixel (paper)"},
     )
     photons: int = _opt(
-        65536,
+        262144,
         "How many light paths are traced from the lights; more is smoother and slower "
         "(the paper uses 16,384 to 262,144).",
         label="Photons",

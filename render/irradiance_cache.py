@@ -1,8 +1,8 @@
 """The irradiance cache on the GPU: one 3D texture, one lookup per pixel.
 
 ``GpuIrradianceCache`` uploads an ``app.irradiance_cache.IrradianceCache`` (its six direction
-grids stacked along z with an empty slice between them, linearly filtered) and
-``lookup_image`` writes an eye's irradiance E into the same rgba32f target the photon gather
+grids stacked along its axis with the fewest cells, an empty slice between them, linearly
+filtered) and ``lookup_image`` writes an eye's irradiance E into the same rgba32f target the photon gather
 fills (``irradiance_cache.comp.glsl``), so the deferred lighting uses it unchanged.
 """
 
@@ -23,17 +23,22 @@ class GpuIrradianceCache:
     def __init__(self, ctx: moderngl.Context, cache: IrradianceCache) -> None:
         self.ctx = ctx
         self.cache = cache
-        x, y, z = cache.dims
-        slab = np.zeros((BUCKETS, z + 1, y, x, 4), np.float32)
-        slab[:, :z] = cache.values  # slice z of each is empty: weight 0 between directions
-        self.texture = ctx.texture3d((x, y, BUCKETS * (z + 1)), 4, slab.tobytes(), dtype="f4")
+        axis = cache.stack_axis
+        along = 3 - axis  # that axis in values (6, Z, Y, X, 4)
+        pad = [(0, 0)] * 5
+        pad[along] = (0, 1)  # one empty slice after each grid: weight 0 between directions
+        slabs = np.pad(cache.values, pad)
+        stacked = np.ascontiguousarray(np.concatenate(list(slabs), axis=along - 1))
+        size = [int(v) for v in cache.dims]
+        size[axis] = BUCKETS * (size[axis] + 1)
+        self.texture = ctx.texture3d(tuple(size), 4, stacked.tobytes(), dtype="f4")
+        self._nbytes = int(stacked.nbytes)
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.texture.repeat_x = self.texture.repeat_y = self.texture.repeat_z = False
 
     @property
     def nbytes(self) -> int:
-        x, y, z = self.cache.dims
-        return x * y * BUCKETS * (z + 1) * 16
+        return self._nbytes
 
     def lookup_image(
         self,
@@ -62,6 +67,7 @@ class GpuIrradianceCache:
                 "u_ic_origin": tuple(float(v) for v in c.origin),
                 "u_ic_cell": float(c.cell),
                 "u_ic_dims": tuple(int(v) for v in c.dims),
+                "u_ic_stack": c.stack_axis,
             },
         )
         bind_image(out, "out")

@@ -4,11 +4,12 @@
 // the same target the photon gather writes, so the lighting reads it unchanged.
 //
 // u_irradiance_cache is a 3D RGBA32F texture: the six normal directions' grids (+X, -X, +Y, -Y,
-// +Z, -Z) stacked along z, each u_ic_dims.z slices, one empty slice between them. rgb = a E,
-// a = the cell's weight (1 where its photons counted for the direction, 0.5 where it took its
-// neighbours' mean, 0 where nothing is known): the hardware's trilinear filter gives
-// sum(w a E) and sum(w a), whose ratio interpolates between the known cells only (an empty
-// slice or cell has weight 0, so nothing bleeds between directions or from empty air).
+// +Z, -Z) stacked along the axis u_ic_stack (the one with the fewest cells, so that a long hall
+// fits GL's 2048 texels a side), each u_ic_dims[u_ic_stack] slices, one empty slice between
+// them. rgb = a E, a = the cell's weight (1 where its photons counted for the direction, 0.5
+// where it took its neighbours' mean, 0 where nothing is known): the hardware's trilinear
+// filter gives sum(w a E) and sum(w a), whose ratio interpolates between the known cells only
+// (an empty slice or cell has weight 0, so nothing bleeds between directions or from empty air).
 layout(local_size_x = 8, local_size_y = 8) in;
 
 uniform sampler2D u_gb_normal;
@@ -19,13 +20,16 @@ uniform ivec2 u_size;
 uniform vec3 u_ic_origin;   // corner of cell (0, 0, 0), world metres
 uniform float u_ic_cell;    // cell edge
 uniform ivec3 u_ic_dims;    // cells per axis (one direction's grid)
+uniform int u_ic_stack;     // the axis the grids stack along (0 x, 1 y, 2 z)
 layout(rgba32f, binding = IMAGE_UNIT_OUT) writeonly uniform image2D u_out;
 
 vec3 cache_direction(vec3 g, int bucket) {
-    // g: the point in cells; the bucket's grid starts at slice bucket * (dims.z + 1).
+    // g: the point in cells; the bucket's grid starts at slice bucket * (dims[stack] + 1).
     vec3 texel = clamp(g, vec3(0.5), vec3(u_ic_dims) - 0.5);
-    texel.z += float(bucket * (u_ic_dims.z + 1));
-    vec3 extent = vec3(u_ic_dims.xy, 6 * (u_ic_dims.z + 1));
+    vec3 extent = vec3(u_ic_dims);
+    int slices = u_ic_dims[u_ic_stack] + 1;
+    texel[u_ic_stack] += float(bucket * slices);
+    extent[u_ic_stack] = float(6 * slices);
     vec4 s = textureLod(u_irradiance_cache, texel / extent, 0.0);
     return s.a > 1e-6 ? s.rgb / s.a : vec3(0.0);
 }
