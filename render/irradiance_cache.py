@@ -2,8 +2,9 @@
 
 ``GpuIrradianceCache`` uploads an ``app.irradiance_cache.IrradianceCache`` (its six direction
 grids stacked along its axis with the fewest cells, an empty slice between them, linearly
-filtered) and ``lookup_image`` writes an eye's irradiance E into the same rgba32f target the photon gather
-fills (``irradiance_cache.comp.glsl``), so the deferred lighting uses it unchanged.
+filtered) and ``lookup_image`` writes an eye's irradiance E into the same rgba32f target the
+photon gather fills (``irradiance_cache.comp.glsl``), so the deferred lighting uses it
+unchanged.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ class GpuIrradianceCache:
         stacked = np.ascontiguousarray(np.concatenate(list(slabs), axis=along - 1))
         size = [int(v) for v in cache.dims]
         size[axis] = BUCKETS * (size[axis] + 1)
-        self.texture = ctx.texture3d(tuple(size), 4, stacked.tobytes(), dtype="f4")
+        shape = (size[0], size[1], size[2])
+        self.texture = ctx.texture3d(shape, 4, stacked.tobytes(), dtype="f4")
         self._nbytes = int(stacked.nbytes)
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.texture.repeat_x = self.texture.repeat_y = self.texture.repeat_z = False
