@@ -198,7 +198,7 @@ def test_whole_numbers_are_shown_as_whole_numbers_and_one_control_per_setting(wi
             assert isinstance(w, (QSpinBox, QComboBox)), key
             assert not isinstance(w, QDoubleSpinBox), key
     photons = window.photon_panel.controls.editors["photons.photons"]
-    assert photons.text() == "65,536 photons"
+    assert photons.text() == "262,144 photons"
     assert window.photon_panel.controls.editors["photons.seed"].text() == "0"
     assert window.panel.editors["stereo.fov_deg"].text() == "95°"
     assert window.panel.editors["stereo.ipd_mm"].text() == "64.0 mm"

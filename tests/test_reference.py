@@ -130,7 +130,7 @@ def test_a_lamp_stops_at_its_range_in_the_reference_too(tmp_path):
     """A lamp whose range (3.5 m) ends above the floor's far part, as the corridor's do (3.05 m,
     2.5 m above the floor): under it both pictures show the physical light times the window;
     beyond the range both are dark. Cycles' own lamps reach everything (the corridor's floor
-    had 5-8x our direct light in the reference)."""
+    had 3-8x our direct light in the reference)."""
     scene, s = lit_box(), settings()
     r = 3.5
     scene.lights = [PointLight(LAMP, (1.0, 1.0, 1.0), LAMP_CD, range_m=r)]

@@ -20,7 +20,7 @@ Units (checked by tests/test_reference.py, a white floor under a 1 cd lamp):
   times a smooth window that reaches 0 at ``range_m`` (render/shaders/shading.glsl); the Cycles
   lamps get the same window (a Light Falloff node's distance through math nodes,
   ``blender_scene.range_window``). Without it the corridor's floor, 2.5 m under lamps whose
-  range is 3.05 m, had 5-8x our direct light in the reference.
+  range is 3.05 m, had 3-8x our direct light in the reference.
 - ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` and
   ``render.ambient_estimate`` (app/ambient.py) have no counterpart: Cycles computes the light
   bounced off walls instead, which the estimate approximates.
