@@ -250,39 +250,9 @@ def build_lights(bpy, job: dict) -> None:
             shine = to_blender(np.asarray(light["direction"]))
             location = to_blender(np.asarray(light["position"]))
         data.color = light["color"]
-        if "range_m" in light:
-            range_window(data, light["range_m"])
         ob = bpy.data.objects.new(data.name, data)
         ob.matrix_world = _aim(shine, location)
         bpy.context.scene.collection.objects.link(ob)
-
-
-def range_window(data, range_m: float) -> None:
-    """Our lamps' range window on a Cycles lamp (``app.scene.range_window``:
-    ``clamp(1 - (d / r)^8, 0, 1)^2`` of the distance d to the lamp): the Light Falloff node's
-    linear output is d times its strength, here d / r."""
-    data.use_nodes = True
-    tree = data.node_tree
-    falloff = tree.nodes.new("ShaderNodeLightFalloff")
-    falloff.inputs["Strength"].default_value = 1.0 / max(float(range_m), 1e-6)
-    falloff.inputs["Smooth"].default_value = 0.0
-    last = falloff.outputs["Linear"]
-    for operation, value, clamp in (("POWER", 8.0, False), ("SUBTRACT", None, True)):
-        node = tree.nodes.new("ShaderNodeMath")
-        node.operation = operation
-        node.use_clamp = clamp
-        if value is None:  # 1 - x
-            node.inputs[0].default_value = 1.0
-            tree.links.new(last, node.inputs[1])
-        else:
-            tree.links.new(last, node.inputs[0])
-            node.inputs[1].default_value = value
-        last = node.outputs[0]
-    square = tree.nodes.new("ShaderNodeMath")
-    square.operation = "POWER"
-    tree.links.new(last, square.inputs[0])
-    square.inputs[1].default_value = 2.0
-    tree.links.new(square.outputs[0], tree.nodes["Emission"].inputs["Strength"])
 
 
 def build_world(bpy, job: dict, arrays) -> None:

@@ -17,10 +17,13 @@ Units (checked by tests/test_reference.py, a white floor under a 1 cd lamp):
   683 times smaller). A spot is the same lamp with Blender's cone (Blender spots do not
   concentrate their power), a sun of E lux has strength E.
 - Our lamps fall off as the physical 1 / d^2 (floored at 10 cm, ``app.scene.lamp_falloff``)
-  times a smooth window that reaches 0 at ``range_m`` (render/shaders/shading.glsl); the Cycles
-  lamps get the same window (a Light Falloff node's distance through math nodes,
-  ``blender_scene.range_window``). Without it the corridor's floor, 2.5 m under lamps whose
-  range is 3.05 m, had 3-8x our direct light in the reference.
+  times a smooth window that reaches 0 at ``range_m`` (render/shaders/shading.glsl); Cycles'
+  as 1 / d^2 with no range: the same up to the window (0.9997 of it at a third of the range, 0.92 at
+  two thirds). The reference keeps the lamps as they are, not as we cut them: the light past the
+  range is the even light's to carry (``app.ambient``, "the lamps' light past their range"; the
+  corridor's floor, 2.5 m under lamps of 3.05 m range, gets 70-88 % of its direct light so). A
+  windowed reference (tried at stop 39, Light Falloff and math nodes) made that light look
+  like an excess of ours.
 - ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` and
   ``render.ambient_estimate`` (app/ambient.py) have no counterpart: Cycles computes the light
   bounced off walls instead, which the estimate approximates.
@@ -207,8 +210,6 @@ def lights_for(scene: Scene, settings: Settings) -> list[dict[str, Any]]:
                 "outer_cone_deg": float(light.outer_cone_deg),
             }
         )
-        if light.kind != "directional" and math.isfinite(light.range_m):
-            out[-1]["range_m"] = float(light.range_m)  # our window, in Cycles too
     return out
 
 
