@@ -21,7 +21,7 @@ Units (checked by tests/test_reference.py, a white floor under a 1 cd lamp):
   as 1 / d^2 with no range: the same up to the window (0.9997 of it at a third of the range, 0.92 at
   two thirds). The reference keeps the lamps as they are, not as we cut them: the light past the
   range is the even light's to carry (``app.ambient``, "the lamps' light past their range"; the
-  corridor's floor, 2.5 m under lamps of 3.05 m range, gets 70-88 % of its direct light so). A
+  corridor's floor, 2.5 m under lamps of 3.05 m range, gets 80-89 % of its direct light so). A
   windowed reference (tried at stop 39, Light Falloff and math nodes) made that light look
   like an excess of ours.
 - ``render.brightness`` scales every lamp (as our renderer does); ``render.ambient`` and
