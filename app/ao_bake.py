@@ -41,6 +41,11 @@ RAY_BUDGET = 3_000_000  # rays per bake, both sides: about 2 s of embree on two 
 BATCH = 250_000  # rays per embree call: bounds the arrays and how long one holds the GIL
 SEED = 14
 OFFSET_M = 2e-3  # ray origins leave the surface by this much (no self-hits)
+# How far an occluder still counts: the screen method's default reach (render.ao_radius_m).
+# Against Cycles (docs/reference_flip.md, stop 40) 0.3 m was closer than 0.75 m on every
+# lamp-lit view (by 0.0003-0.0010): the even light by place already darkens a room's far
+# corners, the bake only needs the contact shadows it cannot see.
+RADIUS_M = 0.3
 
 
 @dataclass
@@ -78,7 +83,7 @@ def vertex_occlusion(
     positions: np.ndarray,
     normals: np.ndarray,
     caster: RayCaster,
-    radius_m: float = 0.75,
+    radius_m: float = RADIUS_M,
     rays: int = RAYS,
     seed: int = SEED,
 ) -> np.ndarray:
@@ -140,7 +145,7 @@ def sample_points(mesh_positions: np.ndarray, indices: np.ndarray) -> np.ndarray
 def bake_scene(
     scene: Scene,
     caster: RayCaster | None = None,
-    radius_m: float = 0.75,
+    radius_m: float = RADIUS_M,
     rays: int = RAYS,
     budget: int = RAY_BUDGET,
 ) -> tuple[Scene, BakeReport]:

@@ -250,7 +250,7 @@ class RenderSettings:
     ao_radius_m: float = _opt(
         0.3,
         "How far away a surface still darkens its neighbour, when worked out from the "
-        "picture; the shading worked out once for the model uses 0.75 m.",
+        "picture; the shading worked out once for the model uses 0.3 m.",
         label="Corner shading reach",
         unit="m",
         lo=0.1,

@@ -227,6 +227,13 @@ class Renderer:
     def pass_named(self, name: str) -> RenderPass:
         return self._by_name[name]
 
+    def meter_afresh(self) -> None:
+        """Automatic exposure meters the next frame at once (a waiting metering of an earlier
+        picture is dropped), as a camera meters before its first picture."""
+        self.exposure.reset()
+        if "exposure_meter" in self._by_name:
+            self.exposure_meter.forget()
+
     # -- scene and targets ---------------------------------------------------------------------
     def set_scene(self, scene: Scene | None, stream_in: bool = False) -> None:
         """Upload ``scene`` (``stream_in``: huge texture sets arrive over the next frames, see
@@ -234,9 +241,7 @@ class Renderer:
         if self.gpu_scene is not None:
             self.gpu_scene.release()
             self.gpu_scene = None
-        self.exposure.reset()  # another room: meter it afresh
-        if "exposure_meter" in self._by_name:
-            self.exposure_meter.forget()
+        self.meter_afresh()  # another room
         self._forget_refinement()
         self.governor.new_scene()  # another room costs otherwise: learn it afresh
         self._warmed.clear()  # its materials are other programs

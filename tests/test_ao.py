@@ -70,6 +70,7 @@ def room(walls: bool = True) -> Scene:
 
 
 CORNER = (-1.97, 0.0, -3.97)
+REACH_M = 0.75  # both methods' reach in these tests: a corner clearly darker at full strength
 OPEN_FLOOR = (0.3, 0.0, -1.6)  # over 1.7 m from both walls
 
 
@@ -88,7 +89,7 @@ def draw(host: OffscreenHost, scene: Scene, **settings) -> list:
         s.set(key, defaults.get(key))
     s.set("render.ao", "screen")  # these tests look at the occlusion unless told otherwise
     s.set("render.ao_strength", 1.0)  # at full strength and the bake's reach
-    s.set("render.ao_radius_m", 0.75)
+    s.set("render.ao_radius_m", REACH_M)
     # ... of the fixed ambient term (the estimate from the lamps is 0 in a room without any).
     s.set("render.ambient_estimate", False)
     for key, value in settings.items():
@@ -126,7 +127,7 @@ def around(img: np.ndarray, rc: tuple[int, int], r: int = 1) -> float:
 
 @pytest.fixture(scope="module")
 def corner() -> Scene:
-    return bake_scene(room())[0]
+    return bake_scene(room(), radius_m=REACH_M)[0]
 
 
 @pytest.mark.parametrize("method", ["screen", "baked"])
@@ -163,6 +164,21 @@ def test_the_shipped_reach_and_strength_shade_a_corner_more_gently(host, corner)
     gentle = around(img, pixel(eyes[0], CORNER))
     open_floor = around(img, pixel(eyes[0], OPEN_FLOOR))
     assert full < gentle < 0.97 * open_floor, (full, gentle, open_floor)
+
+
+def test_the_shipped_bake_shades_a_corner_more_gently_than_a_wide_one(host, corner):
+    """The bake's shipped reach (0.3 m: closer to Cycles than 0.75 m on every lamp-lit view)
+    still darkens the corner, less than the 0.75 m bake."""
+    from app.ao_bake import RADIUS_M
+
+    assert RADIUS_M == Settings().render.ao_radius_m
+    eyes = draw(host, corner, render__ao="baked")
+    wide = around(hdr(host, 0), pixel(eyes[0], CORNER))
+    draw(host, bake_scene(room())[0], render__ao="baked")
+    img = hdr(host, 0)
+    shipped = around(img, pixel(eyes[0], CORNER))
+    open_floor = around(img, pixel(eyes[0], OPEN_FLOOR))
+    assert wide < shipped < 0.97 * open_floor, (wide, shipped, open_floor)
 
 
 def test_ao_darkens_the_ambient_light_only_not_the_lamps(host, corner):
@@ -215,8 +231,8 @@ def test_ao_off_or_at_no_strength_is_exactly_the_plain_picture(host, corner):
 
 
 def test_the_bake_is_deterministic_and_darkest_in_the_corner():
-    a, report = bake_scene(room())
-    b, _ = bake_scene(room())
+    a, report = bake_scene(room(), radius_m=REACH_M)
+    b, _ = bake_scene(room(), radius_m=REACH_M)
     for ma, mb in zip(a.meshes, b.meshes):
         assert ma.ao is not None and mb.ao is not None
         assert np.array_equal(ma.ao, mb.ao)

@@ -331,3 +331,20 @@ def test_the_reference_follows_the_light_to_its_last_bounce(tmp_path):
     area, flux = 6 * 4.0**2, 4 * math.pi * LAMP_CD
     expected = rho**2 * flux / (math.pi * area * (1 - rho))
     assert indirect == pytest.approx(expected, rel=0.12)
+
+
+def test_each_variant_is_compared_at_its_own_metered_exposure():
+    """With automatic exposure every variant is metered afresh: the same settings after a much
+    brighter variant give the same picture (before, the eye was still adapting from the
+    variant before, so a feature's figures depended on the order of the comparison)."""
+    scene = lit_box()
+    dim = settings()
+    dim.set("render.exposure_mode", "auto")
+    bright = dim.copy()
+    bright.set("render.ambient", 4.0)
+    frames = rc.our_frames(
+        scene, VIEW, SIZE, {"dim": dim, "bright": bright, "dim again": dim.copy()}
+    )
+    assert frames["bright"].exposure < 0.5 * frames["dim"].exposure  # metered: it differs
+    assert frames["dim again"].exposure == pytest.approx(frames["dim"].exposure, rel=1e-6)
+    assert np.array_equal(frames["dim again"].image, frames["dim"].image)

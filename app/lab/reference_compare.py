@@ -134,10 +134,11 @@ def our_frames(
     are changed in place between frames, as the panels change them. Each variant's picture is
     the settled one, as a user sees it after a moment at the view: the sky's visibility baked
     (it lights the room through the windows only once baked), every shadow map drawn (the
-    per-frame budget of shadow redraws lifted), the baked occlusion done, and the last of
-    ``SETTLE_FRAMES`` frames. ``still``: the picture the window shows once the viewer has
-    stood there a while, refined (``render.refine`` on: jittered samples averaged until every
-    pixel has ``render.refine_samples``; the photon map grown to ``photons.refine_photons``)."""
+    per-frame budget of shadow redraws lifted), the baked occlusion done, the automatic
+    exposure metered afresh, and the last of ``SETTLE_FRAMES`` frames. ``still``: the picture
+    the window shows once the viewer has stood there a while, refined (``render.refine`` on:
+    jittered samples averaged until every pixel has ``render.refine_samples``; the photon map
+    grown to ``photons.refine_photons``)."""
     from app.paths import FIXED_DT
     from app.refine import needed
     from app.session import Session
@@ -168,6 +169,9 @@ def our_frames(
                 bake = host.renderer.gpu_scene.ao_bake
                 if bake is not None:  # the settling frames then upload it
                     bake.wait(AO_BAKE_WAIT_S)
+            # Metered afresh (automatic exposure): a variant is seen as by an eye adapted to
+            # it, not still adapting from the variant before (which made the order matter).
+            host.renderer.meter_afresh()
             frames = needed(live.render.refine_samples) + 2 if still else SETTLE_FRAMES
             for _ in range(frames):
                 session.walker.place(view.position, view.yaw_deg, view.pitch_deg)
