@@ -410,6 +410,31 @@ def test_ticking_daylight_at_the_opening_exposure_turns_the_exposure_automatic(q
     assert s.render.exposure_mode == "manual" and s.render.exposure_ev == 9.0
 
 
+def test_daylight_from_the_command_line_or_a_preset_opens_at_an_automatic_exposure(
+    qtbot, tmp_path
+):
+    """``vrpreview --set sky.enabled=true`` (or a preset with daylight on and nothing said
+    of the exposure) opened on a white screen: the window's first frame was at the lamp-lit
+    room's fixed exposure. It opens at the automatic one, as ticking the box gives."""
+    from tests.test_render import checker_scene
+    from ui.main_window import MainWindow
+
+    s = Settings()
+    s.render.overlay = False
+    s.set("sky.enabled", True)
+    w = MainWindow(s, checker_scene())
+    qtbot.addWidget(w)
+    assert s.render.exposure_mode == "auto"
+    assert "automatic" in w.sky_panel.status.text()
+    s.set("sky.enabled", False)
+    s.set("render.exposure_mode", "manual")
+    preset = tmp_path / "daylight.json"
+    preset.write_text('{"settings": {"sky": {"enabled": true}}}')
+    w.apply_preset(str(preset))
+    assert s.sky.enabled and s.render.exposure_mode == "auto"
+    w.close()
+
+
 def test_the_showrooms_window_shows_the_sky_itself_in_daylight(host):
     """The built-in showroom's window pane glows to stand for the sky while daylight is off.
     With daylight on the sky is drawn, and the pane would hide it behind its dim glow (the

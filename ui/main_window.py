@@ -148,6 +148,7 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         self.keys_overlay.show_if_first_run()
         QApplication.instance().installEventFilter(self)
         self._scroll_panels()
+        self._expose_for_daylight()  # daylight asked for on the command line
         self.restored_geometry = self.restore_window()
         self.view.setFocus()  # the keys walk from the start (the view takes no Tab focus)
 
@@ -428,7 +429,7 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
 
     def _setting_changed(self, key: str) -> None:
         """Keep the panels showing the one model, and redraw."""
-        if key == "sky.enabled":
+        if key in ("sky.enabled", ""):  # the tab, or a preset
             self._expose_for_daylight()
         if key.startswith(("render.", "tcr.", "cps.", "photons.")) or not key:
             self.panel.refresh()
@@ -444,9 +445,10 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         self.view.update()
 
     def _expose_for_daylight(self) -> None:
-        """Daylight turned on at the fixed exposure a lamp-lit room opens with: a sunlit room
-        is some eight stops brighter and showed as a white screen. The exposure turns
-        automatic, and the Sun and sky tab says so; a fixed exposure the user chose stays."""
+        """Daylight turned on (in the tab, on the command line or by a preset) at the fixed
+        exposure a lamp-lit room opens with: a sunlit room is some eight stops brighter and
+        showed as a white screen. The exposure turns automatic, and the Sun and sky tab says
+        so; a fixed exposure the user chose stays."""
         r = self.settings.render
         if not self.settings.sky.enabled or r.exposure_mode != "manual":
             return
