@@ -410,9 +410,7 @@ def test_ticking_daylight_at_the_opening_exposure_turns_the_exposure_automatic(q
     assert s.render.exposure_mode == "manual" and s.render.exposure_ev == 9.0
 
 
-def test_daylight_from_the_command_line_or_a_preset_opens_at_an_automatic_exposure(
-    qtbot, tmp_path
-):
+def test_daylight_from_the_command_line_or_a_preset_opens_at_an_automatic_exposure(qtbot, tmp_path):
     """``vrpreview --set sky.enabled=true`` (or a preset with daylight on and nothing said
     of the exposure) opened on a white screen: the window's first frame was at the lamp-lit
     room's fixed exposure. It opens at the automatic one, as ticking the box gives."""
