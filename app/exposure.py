@@ -87,6 +87,23 @@ def metered_ev(log2_luminance: np.ndarray) -> float | None:
     return min(max(ev, EV_MIN), EV_MAX)
 
 
+def unfit_opening_exposure(
+    mode: str, ev100: float, daylight: bool, lamps_from_file: bool
+) -> str | None:
+    """Why the fixed exposure a room opens with (``mode`` manual at :data:`EV_DEFAULT`, made
+    for the built-in scenes' lamps and the default lights) does not fit the light: "daylight"
+    (a sunlit room is some eight stops brighter: a white screen) or "lamps" (a model file's
+    own lamps, as bright as the file says: a 60 W bulb's 64 cd shows a bathroom five stops
+    over). None where it fits, or where the user chose another exposure."""
+    if mode != "manual" or ev100 != EV_DEFAULT:
+        return None
+    if daylight:
+        return "daylight"
+    if lamps_from_file:
+        return "lamps"
+    return None
+
+
 class EyeAdaptation:
     """The automatic exposure's state: the EV the eye has adapted to, stepped once a frame.
 

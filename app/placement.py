@@ -119,7 +119,8 @@ def finish_scene(
     notes = list(scene.warnings) + notes
     spawn = authored_spawn(scene, spawn, caster, notes)
     lights = scene.lights
-    if not lights:
+    added = not lights
+    if added:
         progress.report(0.95, "Adding lights")
         lights, light_notes = safe_default_lights(scene, spawn, caster)
         notes += light_notes
@@ -144,6 +145,7 @@ def finish_scene(
         spawn=spawn.viewpoint,
         floor_y=spawn.floor_y,
         lights=lights,
+        lights_added=added or scene.lights_added,
         warnings=notes,
         ray_caster=caster,
     ).sanitized(geometry=False)

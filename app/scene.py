@@ -152,6 +152,7 @@ class Scene:
     spawn: Viewpoint = field(default_factory=lambda: Viewpoint((0.0, 1.6, 0.0)))
     floor_y: float | None = None  # floor height under the spawn, if known
     source: str = ""  # file path, or "built-in"
+    lights_added: bool = False  # the lights are the loader's defaults: the file had none
     indirect: bool = False  # the scene asks for photon-mapped indirect light (photons.enabled)
     unit_scale: float = 1.0  # metres per file unit that loading applied
     # What loading subtracted from the file's (scaled) coordinates to bring a model far from the
@@ -176,6 +177,12 @@ class Scene:
     @property
     def triangle_count(self) -> int:
         return sum(m.triangle_count for m in self.meshes)
+
+    @property
+    def lamps_from_file(self) -> bool:
+        """Lit by a model file's own lights (not the loader's defaults, not a built-in
+        scene's), as bright as the file says."""
+        return bool(self.lights) and not self.lights_added and self.source not in ("", "built-in")
 
     @property
     def model_triangle_count(self) -> int:

@@ -397,3 +397,69 @@ def test_a_slow_failing_load_closes_the_busy_dialog_before_the_error(window, qtb
     window.wait_for_load()
     assert at_error == [(0, True)]  # the error box alone, with the normal cursor
     assert window.session.scene is before
+
+
+# -- the exposure a model file's own lamps open at ---------------------------------------------
+
+
+def lamp_lit_box(folder: Path, candela: float) -> Path:
+    """The Khronos Box (a 1 m cube) with one point lamp of ``candela`` over it (64 cd: a
+    60 W bulb's 800 lumens)."""
+    import json
+    import shutil
+
+    from tests.test_loaders import _sample
+
+    src = _sample("Box")
+    doc = json.loads(src.read_text())
+    shutil.copy(src.parent / "Box0.bin", folder / "Box0.bin")
+    doc.setdefault("extensionsUsed", []).append("KHR_lights_punctual")
+    doc["extensions"] = {
+        "KHR_lights_punctual": {"lights": [{"type": "point", "intensity": candela}]}
+    }
+    doc["nodes"].append(
+        {"translation": [0.0, 1.5, 1.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}
+    )
+    doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    path = folder / "lit.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def redness(window: MainWindow, qtbot) -> float:
+    """How red the red Box shows once the exposure settled: its pixels' mean (R - G) / R
+    (1: as red as its material, 0: washed out to white)."""
+    for _ in range(4):  # the first frame after a load is metered by the next
+        qtbot.wait(50)
+        img = qimage_to_array(window.view.grabFramebuffer())[..., :3].astype(float)
+    box = img[..., 0] > 80  # the void around the model is dark at either exposure
+    assert box.mean() > 0.02
+    return float(((img[..., 0] - img[..., 1]) / img[..., 0])[box].mean())
+
+
+def test_a_model_lit_by_its_own_lamps_opens_at_an_automatic_exposure(window, qtbot, tmp_path):
+    """A designer's file with real lamps (64 cd, a 60 W bulb) opened washed out: the
+    fixed exposure a room opens with is made for the default lights (about 1 lux). It opens
+    at the automatic exposure and the status bar says so; a file without lamps keeps the
+    fixed one, and so does a fixed exposure the user chose."""
+    from tests.test_loaders import _sample
+
+    s = window.settings
+    s.render.overlay = False
+    window.load(str(_sample("Box")))  # no lamps: the default lights, made for the fixed EV
+    window.wait_for_load()
+    assert not window.session.scene.lamps_from_file
+    assert s.render.exposure_mode == "manual"
+    lit = lamp_lit_box(tmp_path, 64.0)
+    window.load(str(lit))
+    window.wait_for_load()
+    assert window.session.scene.lamps_from_file
+    assert s.render.exposure_mode == "auto"
+    assert "automatic for the model's own lamps" in window.statusBar().currentMessage()
+    assert redness(window, qtbot) > 0.8
+    s.set("render.exposure_mode", "manual")  # as at the opening: washed out
+    assert redness(window, qtbot) < 0.5
+    s.set("render.exposure_ev", 4.0)  # the user's own fixed exposure stays
+    window.load(str(lit))
+    window.wait_for_load()
+    assert s.render.exposure_mode == "manual" and s.render.exposure_ev == 4.0

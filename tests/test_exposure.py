@@ -380,3 +380,19 @@ def test_the_evaluation_bar_reads_the_exposure(qtbot):
     window.tcr_panel.poll()
     assert window.tcr_panel.brightness.text().startswith("50%")  # l reads the Brightness
     window.close()
+
+
+def test_the_opening_exposure_is_unfit_for_daylight_and_a_files_own_lamps():
+    """The fixed exposure a room opens with is the settings' default, made for the built-in
+    scenes' lamps and the default lights; daylight or a file's own lamps ask for the
+    automatic one, unless the user chose an exposure."""
+    from app.exposure import unfit_opening_exposure
+    from app.settings import RenderSettings
+
+    opening = RenderSettings()
+    assert (opening.exposure_mode, opening.exposure_ev) == ("manual", EV_DEFAULT)
+    assert unfit_opening_exposure("manual", EV_DEFAULT, False, False) is None
+    assert unfit_opening_exposure("manual", EV_DEFAULT, True, True) == "daylight"
+    assert unfit_opening_exposure("manual", EV_DEFAULT, False, True) == "lamps"
+    assert unfit_opening_exposure("manual", 4.0, True, True) is None  # the user's own
+    assert unfit_opening_exposure("auto", EV_DEFAULT, True, True) is None

@@ -33,12 +33,13 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
+from app.exposure import unfit_opening_exposure
 from app.fileio import atomic_write_bytes
 from app.indirect import PhotonService, refine_target, wanted
 from app.paths import CameraPath
 from app.scene import Scene
 from app.session import Session
-from app.settings import RenderSettings, Settings, SettingsError
+from app.settings import Settings, SettingsError
 from app.tcr import phase_name, terms_from_settings
 from ui import guard, window_state
 from ui.controls import ControlsDialog
@@ -148,7 +149,7 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         self.keys_overlay.show_if_first_run()
         QApplication.instance().installEventFilter(self)
         self._scroll_panels()
-        self._expose_for_daylight()  # daylight asked for on the command line
+        self._expose_for_light()  # daylight on the command line, or a file's own lamps
         self.restored_geometry = self.restore_window()
         self.view.setFocus()  # the keys walk from the start (the view takes no Tab focus)
 
@@ -430,7 +431,7 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
     def _setting_changed(self, key: str) -> None:
         """Keep the panels showing the one model, and redraw."""
         if key in ("sky.enabled", ""):  # the tab, or a preset
-            self._expose_for_daylight()
+            self._expose_for_light()
         if key.startswith(("render.", "tcr.", "cps.", "photons.")) or not key:
             self.panel.refresh()
             self.tcr_panel.refresh()
@@ -444,21 +445,31 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
             self._reload_file()
         self.view.update()
 
-    def _expose_for_daylight(self) -> None:
-        """Daylight turned on (in the tab, on the command line or by a preset) at the fixed
-        exposure a lamp-lit room opens with: a sunlit room is some eight stops brighter and
-        showed as a white screen. The exposure turns automatic, and the Sun and sky tab says
-        so; a fixed exposure the user chose stays."""
-        r = self.settings.render
-        if not self.settings.sky.enabled or r.exposure_mode != "manual":
-            return
-        if r.exposure_ev != RenderSettings().exposure_ev:
-            return
+    def _expose_for_light(self) -> str | None:
+        """Daylight turned on (in the tab, on the command line or by a preset), or a model lit
+        by its own lamps, at the fixed exposure a room opens with (made for the built-in
+        scenes' lamps and the default lights): a sunlit room, or a bathroom under a 60 W
+        bulb, showed as a white screen. The exposure turns automatic and the window says so
+        (the Sun and sky tab; the load's note); a fixed exposure the user chose stays. What
+        it says, or None."""
+        r, scene = self.settings.render, self.session.scene
+        why = unfit_opening_exposure(
+            r.exposure_mode,
+            r.exposure_ev,
+            self.settings.sky.enabled,
+            scene is not None and scene.lamps_from_file,
+        )
+        if why is None:
+            return None
         self.settings.set("render.exposure_mode", "auto")
         self.panel.refresh()
-        self.sky_panel.status.setText(
-            "Exposure set to automatic for daylight (Settings, Exposure, to fix it again)."
-        )
+        fix = "(Settings, Exposure, to fix it again)"
+        if why == "daylight":
+            self.sky_panel.status.setText(f"Exposure set to automatic for daylight {fix}.")
+            return None
+        text = f"exposure set to automatic for the model's own lamps {fix}"
+        log.info("%s: %s", scene.name if scene is not None else "", text)
+        return text
 
     def _reload_file(self) -> None:
         """Load the open model file again (its units changed); built-in scenes stay as they are."""

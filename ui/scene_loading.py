@@ -149,6 +149,7 @@ class SceneLoading:
             dialog.show()
             dialog.repaint()  # painted now: the UI thread is busy until the first frame
         self.session.set_scene(scene, session_path)
+        exposure_note = self._expose_for_light()  # before the first frame is drawn
         self.view.set_scene(scene)
         window_state.remember_opened(name)
         self._refresh_recent()
@@ -158,6 +159,8 @@ class SceneLoading:
         self._update_title()
         self._refresh_viewpoints()
         note = f"Loaded {scene.name}: {scene.triangle_count:,} triangles"
+        if exposure_note:
+            note += f"; {exposure_note}"
         if scene.warnings:
             note += f" ({len(scene.warnings)} warnings: View > Log and warnings, Ctrl+L)"
             for w in scene.warnings:
