@@ -3,7 +3,8 @@
 The factors come straight from the JSON (full float precision), with glTF's defaults: white,
 fully metallic, fully rough. Every map the renderer shades per pixel is kept: base colour (with
 its alpha for MASK and BLEND), normal (+ scale), metallic-roughness, occlusion (+ strength) and
-emissive (times KHR_materials_emissive_strength). KHR_materials_pbrSpecularGlossiness becomes a
+emissive (times KHR_materials_emissive_strength). KHR_materials_unlit glows in its colour
+(``UNLIT_CD_M2``). KHR_materials_pbrSpecularGlossiness becomes a
 base colour (diffuse) and a roughness (1 - glossiness). A texture used by ten materials (or an
 occlusion-roughness-metal image used for two roles) is decoded and uploaded once.
 """
@@ -11,6 +12,7 @@ occlusion-roughness-metal image used for two roles) is decoded and uploaded once
 from __future__ import annotations
 
 import hashlib
+import math
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +40,12 @@ _GL_CLAMP_TO_EDGE = 33071
 # the light at its two faces), and it lets the sky's and the sun's light through as blended
 # glass does (no shadow, no photon stops at it).
 GLASS_ALPHA = 0.1
+# KHR_materials_unlit (a photo backdrop outside a window, a scanned room whose light is in its
+# textures): shown as its colour, lit by nothing. It glows at this luminance per unit colour
+# (cd/m2): a white surface under the 1 lux the default lights give (app.default_lights), so
+# at the fixed exposure a room opens with it shows as a white wall does. Vertex colours do not
+# tint it (they multiply the base colour, which lamps light).
+UNLIT_CD_M2 = 1.0 / math.pi
 
 
 class GltfImages:
@@ -223,10 +231,18 @@ class GltfMaterials:
             base[3] *= 1.0 - transmission * (1.0 - GLASS_ALPHA)
         normal_info = doc.get("normalTexture")
         occlusion_info = doc.get("occlusionTexture")
+        texture = self._texture(name, tex_info, "base colour", keep_alpha=not opaque)
+        emissive_texture = self._texture(name, doc.get("emissiveTexture"), "emissive")
+        if "KHR_materials_unlit" in exts:  # its colour glows; black, rough metal to the lamps
+            emissive = [c * UNLIT_CD_M2 for c in base[:3]]
+            emissive_texture = texture  # the colour map (sRGB, as an emissive map is)
+            base[:3] = [0.0, 0.0, 0.0]  # alpha stays: cut-outs and glass as they were
+            roughness, metallic, mr_info = 1.0, 1.0, None
+            normal_info = occlusion_info = None
         return Material(
             name,
             (base[0], base[1], base[2], base[3]),
-            self._texture(name, tex_info, "base colour", keep_alpha=not opaque),
+            texture,
             float(roughness),
             float(metallic),
             (emissive[0], emissive[1], emissive[2]),
@@ -235,7 +251,7 @@ class GltfMaterials:
             metallic_roughness_texture=self._texture(name, mr_info, "metallic-roughness"),
             occlusion_texture=self._texture(name, occlusion_info, "occlusion"),
             occlusion_strength=float_or(as_dict(occlusion_info).get("strength"), 1.0),
-            emissive_texture=self._texture(name, doc.get("emissiveTexture"), "emissive"),
+            emissive_texture=emissive_texture,
             alpha_mode=alpha_mode,
             alpha_cutoff=float_or(doc.get("alphaCutoff"), 0.5),
             double_sided=doc.get("doubleSided") is True,

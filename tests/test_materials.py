@@ -640,3 +640,35 @@ def test_obj_colour_map_in_a_windows_subfolder_is_found(tmp_path: Path):
     assert oak.texture is not None, scene.warnings
     assert tuple(scene.textures[oak.texture].rgba[0, 0, :3]) == (150, 90, 40)
     assert not any("missing" in w for w in scene.warnings), scene.warnings
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_an_unlit_material_shows_its_colour_whatever_the_lamps(host, path, tmp_path):
+    """KHR_materials_unlit (a photo backdrop outside a window, a scanned room with its light
+    in its textures) was shaded by the lamps as any surface. It shows its colour map's colours
+    at the same level whatever the lamps give, where the lit wall behind follows them."""
+    import dataclasses
+
+    photo = halves((200, 150, 60), (60, 110, 200))
+    unlit = {
+        "name": "backdrop",
+        "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+        "extensions": {"KHR_materials_unlit": {}},
+    }
+    scene = load_scene(_two_quads_gltf(tmp_path, [RED_WALL, unlit], [photo]))
+    backdrop = next(m for m in scene.materials if m.name == "backdrop")
+    assert backdrop.base_color[:3] == (0.0, 0.0, 0.0) and backdrop.emissive_texture is not None
+    shots = []
+    for gain in (1.0, 20.0):
+        lights = [dataclasses.replace(lt, intensity=lt.intensity * gain) for lt in scene.lights]
+        shots.append(draw(host, dataclasses.replace(scene, lights=lights), **path))
+    left, right = pixel_of(host, -0.3, 0.0, -2.0), pixel_of(host, 0.3, 0.0, -2.0)
+    wall = pixel_of(host, 2.0, 0.0, -4.0)  # the lit red wall beside the backdrop
+    dim, bright = shots
+    assert bright[wall][0] > 3 * dim[wall][0]  # the lamps light the wall
+    for img in shots:
+        warm, cool = img[left], img[right]
+        assert warm[0] > warm[1] > warm[2] and cool[2] > cool[1] > cool[0], (warm, cool)
+        assert 40 < warm[0] < 250  # shown, neither black nor clipped
+    assert np.abs(bright[left] - dim[left]).max() <= 2  # the lamps leave it as it is
+    assert np.abs(bright[right] - dim[right]).max() <= 2
