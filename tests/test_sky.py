@@ -408,6 +408,11 @@ def test_ticking_daylight_at_the_opening_exposure_turns_the_exposure_automatic(q
     s.set("render.exposure_ev", 9.0)  # the user's own daylight exposure
     box.setChecked(True)
     assert s.render.exposure_mode == "manual" and s.render.exposure_ev == 9.0
+    box.setChecked(False)
+    s.set("render.exposure_ev", -1.3)
+    w.settings_as_given = True  # a study's condition: its protocol's exposure, exactly
+    box.setChecked(True)
+    assert s.render.exposure_mode == "manual"
 
 
 def test_daylight_from_the_command_line_or_a_preset_opens_at_an_automatic_exposure(qtbot, tmp_path):

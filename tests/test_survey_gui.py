@@ -110,6 +110,7 @@ def test_an_experimenter_runs_four_participants_and_gets_the_report(window, qtbo
         qtbot.mouseClick(setup.start_button, Qt.MouseButton.LeftButton)
         runner = setup.runner
         assert runner is not None and window.normal_mode
+        assert window.settings_as_given  # the protocol's exposure, not the window's choice
         qtbot.keyClick(window.view, Qt.Key.Key_Tab)
         assert window.normal_mode and not window.dock.isVisible()  # no panels mid-session
         seen = drive(qtbot, runner, pid_n, stop_for.get(pid_n))
@@ -117,6 +118,7 @@ def test_an_experimenter_runs_four_participants_and_gets_the_report(window, qtbo
         assert box is not None and "Thank you" in box.text()
         box.close()
         assert not window.normal_mode and window.dock.isVisible()  # the window is given back
+        assert not window.settings_as_given
         n_expected = 16 + (16 + 5) * 2  # the stopped run's questionnaires are still asked
         assert len(seen) == n_expected
         events = [

@@ -73,6 +73,9 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         super().__init__()
         self.settings = settings or Settings()
         self.session = Session(self.settings)
+        # A study session's conditions are its protocol's settings, exactly: the window adjusts
+        # nothing of them (ui.survey_runner sets this while a session runs).
+        self.settings_as_given = False
         if scene is not None:
             self.session.set_scene(scene, path)
         self.setWindowTitle("VR Preview")
@@ -450,8 +453,11 @@ class MainWindow(SceneLoading, ViewpointActions, QMainWindow):
         by its own lamps, at the fixed exposure a room opens with (made for the built-in
         scenes' lamps and the default lights): a sunlit room, or a bathroom under a 60 W
         bulb, showed as a white screen. The exposure turns automatic and the window says so
-        (the Sun and sky tab; the load's note); a fixed exposure the user chose stays. What
-        it says, or None."""
+        (the Sun and sky tab; the load's note); a fixed exposure the user chose stays, and a
+        study's conditions stay as its protocol gives them (``settings_as_given``). What it
+        says, or None."""
+        if self.settings_as_given:
+            return None
         r, scene = self.settings.render, self.session.scene
         why = unfit_opening_exposure(
             r.exposure_mode,

@@ -80,6 +80,7 @@ class SurveyRunner(QObject):
     # -- flow ----------------------------------------------------------------------------------
     def start(self) -> None:
         self.window.set_normal_mode(True)  # no panels: they would show the condition's settings
+        self.window.settings_as_given = True  # the conditions' exposure as the protocol says
         QApplication.instance().installEventFilter(self)  # Tab stays off for the session
         self._advance()
 
@@ -270,6 +271,7 @@ class SurveyRunner(QObject):
         w = self.window
         for key in self._saved_settings.keys():
             w.settings.set(key, self._saved_settings.get(key))
+        w.settings_as_given = False
         w._setting_changed("")  # survey: refresh panels (MainWindow's own slot)
         w.set_normal_mode(self._saved_normal)
         w.setWindowTitle(self._saved_title)
