@@ -61,7 +61,7 @@ from app.daylight_photons import (
 )
 from app.photon_map import PhotonMap, encode_directions
 from app.raycast import RayCaster
-from app.scene import LIGHT_MIN_DIST2, Material, Scene
+from app.scene import LIGHT_MIN_DIST2, Material, Scene, lights_with_daylight
 
 #: Photon paths traced together: one batched embree call per bounce for this many live rays.
 CHUNK = 2**18
@@ -267,9 +267,10 @@ def _daylight_sources(
     seed: int,
     notes: list[str],
 ) -> DaylightSources | None:
-    """The sun, the sky and the scene's directional lights through the scene's openings."""
+    """The sun, the sky and the scene's directional lights through the scene's openings (with
+    daylight on, the model's own suns give way to the sun by date and time)."""
     beams = [] if daylight is None else list(daylight.beams)
-    for light in scene.lights:
+    for light in lights_with_daylight(scene.lights, daylight is not None):
         if light.kind != "directional":
             continue
         to = -np.asarray(light.direction, np.float64).reshape(-1)[:3]

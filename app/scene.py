@@ -111,6 +111,14 @@ class Light:
 
 PointLight = Light  # the name the lamps had before spots and the sun
 
+
+def lights_with_daylight(lights: list[Light], daylight: bool) -> list[Light]:
+    """A scene's lights as a frame uses them: with daylight on (``sky.enabled``), the model's
+    own suns (directional lights: a Blender Sun lamp exported to glTF) give way to the sun
+    placed by date and time, so a room has one sun and one patch of it on the floor."""
+    return [lt for lt in lights if not (daylight and lt.kind == "directional")]
+
+
 #: The floor on a lamp's squared distance (m2) in its inverse-square falloff: 10 cm, so a
 #: surface touching a lamp is bright, not infinite. The renderer's shaders get the same value
 #: (render.constants.LIGHT_MIN_DIST2).

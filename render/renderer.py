@@ -30,7 +30,7 @@ from app.governor import (
 from app.paths import FIXED_DT
 from app.photon_map import PhotonMap
 from app.refine import refine_on
-from app.scene import Light, Scene
+from app.scene import Light, Scene, lights_with_daylight
 from app.settings import Settings
 from app.sky import scene_sky, sky_key, sun_light
 from app.tcr import finest_per_texture
@@ -258,7 +258,8 @@ class Renderer:
 
     def frame_lights(self) -> list[Light]:
         """The lights of a frame: the scene's lamps, then the sun (``kind="directional"``,
-        ``direction`` the way its light travels) while daylight is on and it is up."""
+        ``direction`` the way its light travels) while daylight is on and it is up, in place
+        of the model's own (``app.scene.lights_with_daylight``)."""
         if self.gpu_scene is None:
             return []
         lights = list(self.gpu_scene.scene.lights)
@@ -269,7 +270,8 @@ class Renderer:
         key = (id(self.gpu_scene), sky_key(sky))
         if self._sun_key != key:  # astral only when the date, time, site or north change
             self._sun, self._sun_key = sun_light(sky), key
-        return lights + ([self._sun] if self._sun is not None else [])
+        own = lights_with_daylight(lights, True)
+        return own + ([self._sun] if self._sun is not None else [])
 
     def _sync_lights(self) -> None:
         """The GPU's light list follows the frame's (the sun comes and goes with the daylight

@@ -474,3 +474,46 @@ def _frame(host: OffscreenHost, pose) -> FrameInput:
     cam = StereoCamera(host.settings.stereo)
     cam.set_pose(*pose)
     return FrameInput(cam.eyes(*host.eye_size), gaze=(-1, -1))
+
+
+def test_the_models_own_sun_gives_way_to_the_sun_of_the_date_and_time(host):
+    """A room exported from Blender with its Sun lamp (a glTF directional light) had two suns
+    with daylight on, and two patches of sun on the floor. With daylight on the model's own
+    suns give way to the sun placed by date and time, in the picture, the even light, the
+    photons and the Cycles reference; with daylight off the model's sun is its light."""
+    import dataclasses
+
+    from app.daylight_photons import daylight_for
+    from app.lab.cycles_reference import lights_for
+    from app.photons import trace_photons
+    from app.scene import Light
+
+    plain = room()
+    towards = np.array([0.3, -0.6, -0.74])  # in through the south window, steeper than ours
+    own = Light(
+        (0.0, 0.0, 0.0),
+        (1.0, 1.0, 1.0),
+        60000.0,
+        kind="directional",
+        direction=tuple(float(v) for v in towards / np.linalg.norm(towards)),
+    )
+    sunny = dataclasses.replace(plain, lights=[*plain.lights, own])
+    pose = ((0.0, 2.9, 0.0), 180.0, -85.0)  # under the ceiling, looking down
+    ours = look(host, plain, *pose)
+    both = look(host, sunny, *pose)
+    assert np.allclose(both, ours, rtol=1e-4, atol=1e-4)
+    lights = host.renderer.frame_lights()
+    assert [lt.kind for lt in lights] == ["point", "directional"] and own not in lights
+    s = host.settings
+    assert [d["kind"] for d in lights_for(sunny, s)] == ["point", "directional"]
+    assert lights_for(sunny, s)[-1] == lights_for(plain, s)[-1]
+    day = daylight_for(s.sky)
+    kept = [trace_photons(sc, 4096, daylight=day).power.sum() for sc in (plain, sunny)]
+    assert kept[1] == pytest.approx(kept[0], rel=1e-6)
+    s.set("sky.enabled", False)
+    try:
+        assert own in host.renderer.frame_lights()  # the model's sun, with daylight off
+        lit = look(host, sunny, *pose)
+        assert float((lit @ LUMA).max()) > 10 * float((look(host, plain, *pose) @ LUMA).max())
+    finally:
+        s.set("sky.enabled", True)

@@ -56,7 +56,7 @@ import numpy as np
 
 from app.camera import StereoCamera, orientation
 from app.fileio import atomic_write_json, atomic_write_png
-from app.scene import Material, Scene, Viewpoint
+from app.scene import Material, Scene, Viewpoint, lights_with_daylight
 from app.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -187,7 +187,7 @@ def lights_for(scene: Scene, settings: Settings) -> list[dict[str, Any]]:
     frame's lights (render.renderer ``frame_lights``), for the scene's north."""
     scale = settings.render.brightness if brightness_dims_lamps(settings) else 1.0
     out = []
-    lights = list(scene.lights)
+    lights = lights_with_daylight(scene.lights, settings.sky.enabled)
     if settings.sky.enabled:
         from app.sky import sun_light
 
