@@ -108,9 +108,11 @@ STANDING_CLOSURE = 0.25  # a face one stands on sees the scene on at least this 
 STANDING_HEADROOM_M = 1.8  # and has nothing this close above it
 EYE_HEIGHT_M = 1.6
 NEAREST = 24  # points looked at for the one on a ray's hit surface
-CREASE_M = (
-    0.75  # a ray that ends this close met a nearby surface (the AO reach, render.ao_radius_m)
-)
+#: A ray that ends this close met a nearby surface: what a crease is, for the occluders'
+#: return and the field by place. Not the occlusion's reach (render.ao_radius_m, 0.3 m): at
+#: 0.3 m here six of nine views were further from Cycles (living room 0.228 against 0.188,
+#: docs/reference_flip.md, stop 40).
+CREASE_M = 0.75
 #: A face deeper in a crease than this (the share of its rays ending within CREASE_M: under a
 #: sofa, between a cabinet and the wall) stays out of the field by place: no one sees it, and
 #: its little light spread over the cells round it darkened the open surfaces beside it
