@@ -43,8 +43,9 @@ GLASS_ALPHA = 0.1
 # KHR_materials_unlit (a photo backdrop outside a window, a scanned room whose light is in its
 # textures): shown as its colour, lit by nothing. It glows at this luminance per unit colour
 # (cd/m2): a white surface under the 1 lux the default lights give (app.default_lights), so
-# at the fixed exposure a room opens with it shows as a white wall does. Vertex colours do not
-# tint it (they multiply the base colour, which lamps light).
+# at the fixed exposure a room opens with it shows as a white wall does; with daylight on the
+# picture shows it at the day's outdoor light instead (Material.unlit, app.sky.unlit_gain).
+# Vertex colours do not tint it (they multiply the base colour, which lamps light).
 UNLIT_CD_M2 = 1.0 / math.pi
 
 
@@ -255,6 +256,7 @@ class GltfMaterials:
             alpha_mode=alpha_mode,
             alpha_cutoff=float_or(doc.get("alphaCutoff"), 0.5),
             double_sided=doc.get("doubleSided") is True,
+            unlit="KHR_materials_unlit" in exts,
         )
 
     def _texture(self, material: str, info: Any, role: str, keep_alpha: bool = False) -> int | None:

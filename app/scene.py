@@ -59,6 +59,11 @@ class Material:
     # while daylight is off; with daylight on the sky itself shows through the opening, and
     # the floor mirrors it (render.gpu_scene.GpuScene.shown). No file sets it.
     sky_standin: bool = False
+    # KHR_materials_unlit (a photo backdrop outside a window): ``emissive`` is its colour's glow
+    # under 1 lux (app.gltf_materials.UNLIT_CD_M2). The picture shows it at the scene's light:
+    # with daylight on, at the day's outdoor illuminance (app.sky.unlit_gain), so the photo
+    # outside reads as the view out, not as a black pane beside a sky of thousands of cd/m2.
+    unlit: bool = False
 
 
 @dataclass

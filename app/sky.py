@@ -126,6 +126,7 @@ class SkyBake:
     sun: Light | None
     warning: str | None = None  # why the sky photo was not used, in words
     from_image: bool = False
+    outdoor_lux: float = 0.0  # horizontal illuminance in the open from the sun and the sky
 
 
 SKY_SIZE = (128, 64)  # equirectangular texels: the diffuse light needs no more
@@ -149,6 +150,7 @@ def bake_sky(settings: SkySettings | Settings, size: tuple[int, int] = SKY_SIZE)
     e_sun = np.zeros(3)
     if sun is not None:
         e_sun = np.asarray(sun.color) * sun.intensity * max(float(to_sun[1]), 0.0)
+    outdoor_lux = float((e_sky + e_sun) @ LUMA)
     ground = GROUND_REFLECTANCE * (e_sky + e_sun) / math.pi * np.array([1.0, 0.95, 0.85])
     rgb = np.where(upper[..., None], rgb, ground[None, None, :])
     warning = None
@@ -169,7 +171,16 @@ def bake_sky(settings: SkySettings | Settings, size: tuple[int, int] = SKY_SIZE)
             rgb = photo * (want / have if have > 1e-9 else 1.0)
             from_image = True
     rgb = rgb.astype(np.float32)
-    return SkyBake(rgb, irradiance_sh(rgb, dirs, solid), sun, warning, from_image)
+    return SkyBake(rgb, irradiance_sh(rgb, dirs, solid), sun, warning, from_image, outdoor_lux)
+
+
+def unlit_gain(bake: SkyBake | None) -> float:
+    """How many times brighter than their 1-lux glow (``app.gltf_materials.UNLIT_CD_M2``)
+    unlit materials show: with daylight on (``bake``), the day's outdoor horizontal illuminance
+    in lux, so that a white pixel of a photo backdrop outside the window is as bright as a
+    white card in the open and its sky about as bright as the sky (at 1 lux it was a black pane
+    beside a sky of thousands of cd/m2); at night, or with daylight off, 1."""
+    return 1.0 if bake is None else max(bake.outdoor_lux, 1.0)
 
 
 def read_panorama(path: str, size: tuple[int, int] = SKY_SIZE) -> np.ndarray:

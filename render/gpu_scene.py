@@ -244,6 +244,9 @@ class GpuScene:
         # The sky is drawn this frame (sky.enabled): the panes standing for it are not
         # (Material.sky_standin; ``shown``). Set by the renderer each frame.
         self.daylight = False
+        # What unlit materials' glow is multiplied by this frame (app.sky.unlit_gain: the
+        # day's outdoor lux with daylight on, else 1). Set by the renderer each frame.
+        self.unlit_gain = 1.0
         self._vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_vaos: dict[tuple[int, int], moderngl.VertexArray] = {}
         self._ao_buffers: dict[int, moderngl.Buffer] = {}  # uploaded when AO first draws
@@ -433,10 +436,11 @@ class GpuScene:
         by_material = self._factor_writes.get(prog)
         if by_material is None:
             by_material = self._factor_writes[prog] = {}
+        gain = self.unlit_gain if mat.unlit else 1.0
         writes = by_material.get(id(mat))
-        if writes is None or writes[0] is not mat:
-            writes = by_material[id(mat)] = (mat, factor_writes(prog, mat))
-        for member, data in writes[1]:
+        if writes is None or writes[0] is not mat or writes[1] != gain:
+            writes = by_material[id(mat)] = (mat, gain, factor_writes(prog, mat, gain))
+        for member, data in writes[2]:
             member.write(data)
         if mesh.texture is not None and (names is None or "albedo" in names):
             bind_texture(prog, "albedo", self.streamer.resident[mesh.texture].tex, optional=True)

@@ -36,13 +36,16 @@ def alpha_mask_defines(mesh: GpuMesh | GpuGroup) -> dict[str, object]:
     return {"ALPHA_MASK": True, "HAS_TEXTURE": mesh.texture is not None}
 
 
-def factor_writes(prog: moderngl.Program, mat) -> list[tuple[moderngl.Uniform, bytes]]:
-    """The material factors ``prog``'s variant reads, as (uniform, float32 bytes) pairs."""
+def factor_writes(
+    prog: moderngl.Program, mat, emissive_gain: float = 1.0
+) -> list[tuple[moderngl.Uniform, bytes]]:
+    """The material factors ``prog``'s variant reads, as (uniform, float32 bytes) pairs; the
+    glow times ``emissive_gain`` (an unlit material at the scene's light: ``GpuScene``)."""
     values = {
         "u_base_color": mat.base_color,
         "u_roughness": mat.roughness,
         "u_metallic": mat.metallic,
-        "u_emissive": mat.emissive,
+        "u_emissive": [e * emissive_gain for e in mat.emissive],
         "u_normal_scale": mat.normal_scale,
         "u_occlusion_strength": mat.occlusion_strength,
         "u_alpha_cutoff": mat.alpha_cutoff,

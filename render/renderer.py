@@ -76,7 +76,7 @@ from render.reflections import ReflectionPass
 from render.shaders import ShaderLibrary
 from render.shadow_mask import ShadowMaskPass
 from render.shadows import ShadowPass
-from render.sky import DaylightPass, SkyPass
+from render.sky import DaylightPass, SkyPass, frame_unlit_gain
 from render.upscale import render_size
 
 log = logging.getLogger(__name__)
@@ -356,6 +356,7 @@ class Renderer:
         est = self._ambient_estimate()
         scene = self.gpu_scene or self._empty
         scene.daylight = bool(settings.sky.enabled)  # the sky shows through its stand-ins
+        scene.unlit_gain = frame_unlit_gain(self._by_name.get("daylight"), settings, scene)
         return FrameContext(
             eyes=frame.eyes,
             scene=scene,

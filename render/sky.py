@@ -20,7 +20,7 @@ import numpy as np
 
 from app.scene import Light
 from app.settings import SkySettings
-from app.sky import SkyBake, bake_sky, north_east, scene_sky, sky_key
+from app.sky import SkyBake, bake_sky, north_east, scene_sky, sky_key, unlit_gain
 from app.sky_field import SkyField, VisibilityBake
 from app.sky_model import SUN_HALF_ANGLE_DEG
 from render.gpu_scene import GpuScene
@@ -194,6 +194,14 @@ class DaylightPass(RenderPass):
         if self.texture is not None:
             self.texture.release()
             self.texture = None
+
+
+def frame_unlit_gain(daylight: object, settings, scene: object) -> float:
+    """``app.sky.unlit_gain`` for the frame's settings: the daylight pass's bake of the
+    scene's sky (the same bake it draws, baked again only when a ``sky.*`` setting changed)."""
+    if not settings.sky.enabled or not isinstance(daylight, DaylightPass):
+        return 1.0
+    return unlit_gain(daylight.update_sky(scene_sky(settings.sky, getattr(scene, "scene", scene))))
 
 
 class SkyPass(RenderPass):

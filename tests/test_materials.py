@@ -658,6 +658,7 @@ def test_an_unlit_material_shows_its_colour_whatever_the_lamps(host, path, tmp_p
     scene = load_scene(_two_quads_gltf(tmp_path, [RED_WALL, unlit], [photo]))
     backdrop = next(m for m in scene.materials if m.name == "backdrop")
     assert backdrop.base_color[:3] == (0.0, 0.0, 0.0) and backdrop.emissive_texture is not None
+    assert backdrop.unlit and not scene.materials[0].unlit
     shots = []
     for gain in (1.0, 20.0):
         lights = [dataclasses.replace(lt, intensity=lt.intensity * gain) for lt in scene.lights]

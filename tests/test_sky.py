@@ -517,3 +517,52 @@ def test_the_models_own_sun_gives_way_to_the_sun_of_the_date_and_time(host):
         assert float((lit @ LUMA).max()) > 10 * float((look(host, plain, *pose) @ LUMA).max())
     finally:
         s.set("sky.enabled", True)
+
+
+def test_a_photo_backdrop_outside_the_window_shows_as_the_view_out_in_daylight(host):
+    """A KHR_materials_unlit backdrop outside the window (a photo of the view out) glowed at
+    its 1-lux level whatever the daylight: 0.2 cd/m2, a black pane beside a sky of 10,000.
+    With daylight on it now shows at the day's outdoor light, as the sky would there, in our
+    frame and in the Cycles reference's job; it neither shuts out nor adds to the daylight the
+    room gets; with daylight off it glows at its 1-lux level as before."""
+    import dataclasses
+
+    from app.gltf_materials import UNLIT_CD_M2
+    from app.lab.cycles_reference import export
+    from app.sky import bake_sky, unlit_gain
+
+    plain = room()
+    colour = np.array([0.6, 0.7, 0.5])
+    photo = Material(
+        "view out",
+        (0.0, 0.0, 0.0, 1.0),
+        roughness=1.0,
+        metallic=1.0,
+        emissive=tuple(float(c) for c in colour * UNLIT_CD_M2),
+        unlit=True,
+    )
+    backdrop = dataclasses.replace(
+        grid("backdrop", (-6, -1, 5), (12, 0, 0), (0, 6, 0), 4, (0, 0, -1)), material=1
+    )
+    scene = dataclasses.replace(
+        plain, meshes=[*plain.meshes, backdrop], materials=[*plain.materials, photo]
+    ).sanitized()
+    pose = ((0.0, 1.6, 0.0), 180.0, 10.0)
+    at = pixel(host, *pose, (0.0, 2.3, 2.0))  # in the window
+    sky = float(look(host, plain, *pose)[at] @ LUMA)
+    seen = look(host, scene, *pose)[at]
+    assert 0.5 * sky < float(seen @ LUMA) < 5.0 * sky, (seen, sky)
+    assert seen[1] > seen[0] > seen[2]  # its own colour
+    down = ((0.0, 2.8, 0.0), 0.0, -89.0)
+    floor = [float((look(host, sc, *down) @ LUMA).mean()) for sc in (plain, scene)]
+    assert floor[1] == pytest.approx(floor[0], rel=0.05)
+    s = host.settings
+    gain = unlit_gain(bake_sky(s.sky))
+    job = export(scene, s, scene.spawn, (32, 18), 4)
+    assert job.materials[1]["emissive"] == pytest.approx(list(colour * UNLIT_CD_M2 * gain))
+    s.set("sky.enabled", False)
+    try:
+        night = look(host, scene, *pose)[at]
+        assert night == pytest.approx(colour * UNLIT_CD_M2, rel=0.05)
+    finally:
+        s.set("sky.enabled", True)

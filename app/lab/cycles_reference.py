@@ -347,17 +347,19 @@ class ReferenceJob:
         return h.hexdigest()[:24]
 
 
-def material_for(m: Material) -> dict[str, Any]:
+def material_for(m: Material, unlit_gain: float = 1.0) -> dict[str, Any]:
     """A material as Cycles' Principled BSDF is told it: the factors and every glTF map (base
     colour and emissive in sRGB, normal and metallic-roughness as data; the occlusion map has
-    no counterpart, a path tracer finds the occlusion itself)."""
+    no counterpart, a path tracer finds the occlusion itself). An unlit material glows as our
+    frame shows it (``unlit_gain``: ``app.sky.unlit_gain``)."""
+    gain = unlit_gain if m.unlit else 1.0
     return {
         "name": m.name,
         "base_color": [float(v) for v in m.base_color],
         "texture": m.texture,
         "roughness": float(m.roughness),
         "metallic": float(m.metallic),
-        "emissive": [float(v) for v in m.emissive],
+        "emissive": [float(v) * gain for v in m.emissive],
         "normal_texture": m.normal_texture,
         "normal_scale": float(m.normal_scale),
         "metallic_roughness_texture": m.metallic_roughness_texture,
@@ -379,17 +381,21 @@ def export(
 ) -> ReferenceJob:
     """The job for our left eye at ``size`` (one eye's width x height) seeing ``scene``;
     ``max_bounces`` limits Cycles' light paths (0: the direct light alone)."""
+    from app.sky import bake_sky, unlit_gain
+
     sky = sky_for(scene, settings)
     arrays = merged_arrays(scene, daylight=sky is not None)
+    gain = 1.0
     if sky is not None:
         arrays["sky"] = sky_image(scene, settings)
+        gain = unlit_gain(bake_sky(scene_sky_settings(scene, settings)))
     return ReferenceJob(
         size=(int(size[0]), int(size[1])),
         samples=int(samples),
         camera=eye_camera(settings, view, size),
         lights=lights_for(scene, settings),
         sky=sky,
-        materials=[material_for(m) for m in scene.materials],
+        materials=[material_for(m, gain) for m in scene.materials],
         textures=[{"name": t.name, "repeat": bool(t.repeat)} for t in scene.textures],
         exposure=fixed_exposure(settings),
         arrays=arrays,
