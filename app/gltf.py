@@ -38,6 +38,7 @@ SUPPORTED_REQUIRED_EXTENSIONS = frozenset(
         "KHR_mesh_quantization",
         "KHR_materials_unlit",
         "KHR_materials_transmission",
+        "EXT_texture_webp",  # Blender's "WebP" image format: Pillow decodes it
     }
 )
 

@@ -300,6 +300,25 @@ def test_unsupported_required_extension_is_refused_by_name(tmp_path: Path, ext: 
     )
 
 
+def test_webp_only_textures_as_blender_writes_them_are_read(tmp_path: Path) -> None:
+    """Blender's exporter with Image Format "WebP" names each image in the texture's
+    EXT_texture_webp, with no PNG fallback, and marks the extension required: such a file was
+    refused by name. Its texture is read."""
+    g = _quad_scene()
+    out = io.BytesIO()
+    Image.new("RGB", (8, 8), (200, 40, 40)).save(out, "WEBP", lossless=True)
+    mat = g.textured_material(out.getvalue(), "image/webp")
+    texture = g.doc["textures"][-1]
+    texture["extensions"] = {"EXT_texture_webp": {"source": texture.pop("source")}}
+    g.doc["extensionsUsed"] = g.doc["extensionsRequired"] = ["EXT_texture_webp"]
+    g.doc["meshes"][0]["primitives"][0]["material"] = mat
+    scene = load_scene(g.write_glb(tmp_path))
+    material = scene.materials[scene.meshes[0].material]
+    assert material.texture is not None
+    rgba = scene.textures[material.texture].rgba
+    assert tuple(rgba[4, 4, :3]) == (200, 40, 40)
+
+
 def test_meshopt_used_with_fallback_reads_the_fallback(tmp_path: Path) -> None:
     g = _quad_scene()
     g.doc["extensionsUsed"] = ["EXT_meshopt_compression"]
