@@ -45,7 +45,7 @@ GLASS_ALPHA = 0.1
 # (cd/m2): a white surface under the 1 lux the default lights give (app.default_lights), so
 # at the fixed exposure a room opens with it shows as a white wall does; with daylight on the
 # picture shows it at the day's outdoor light instead (Material.unlit, app.sky.unlit_gain).
-# Vertex colours do not tint it (they multiply the base colour, which lamps light).
+# Vertex colours tint it in the picture (material.glsl UNLIT: a scan coloured per vertex).
 UNLIT_CD_M2 = 1.0 / math.pi
 
 

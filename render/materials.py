@@ -23,6 +23,7 @@ def material_defines(mesh: GpuMesh | GpuGroup) -> dict[str, object]:
         "HAS_EMISSIVE_MAP": "emissive_map" in maps,
         "ALPHA_MASK": mode == "MASK",
         "ALPHA_BLEND": mode == "BLEND",
+        "UNLIT": mesh.material.unlit,
     }
     # Only the features it has: a plain material is the variant the renderer warms up.
     return {"HAS_TEXTURE": mesh.texture is not None, **{k: True for k, v in extra.items() if v}}

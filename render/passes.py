@@ -463,6 +463,7 @@ class EmissivePass(RenderPass):
                 defines = {
                     **alpha_mask_defines(group),
                     "HAS_EMISSIVE_MAP": "emissive_map" in (group.maps or {}),
+                    "UNLIT": group.material.unlit,
                     "OBJECT_TABLE": True,
                 }
                 prog = self.shaders.program(
@@ -478,6 +479,7 @@ class EmissivePass(RenderPass):
                 defines = {
                     **alpha_mask_defines(mesh),
                     "HAS_EMISSIVE_MAP": "emissive_map" in (mesh.maps or {}),
+                    "UNLIT": mesh.material.unlit,
                 }
                 prog = self.shaders.program(
                     "geometry.vert.glsl",

@@ -673,3 +673,29 @@ def test_an_unlit_material_shows_its_colour_whatever_the_lamps(host, path, tmp_p
         assert 40 < warm[0] < 250  # shown, neither black nor clipped
     assert np.abs(bright[left] - dim[left]).max() <= 2  # the lamps leave it as it is
     assert np.abs(bright[right] - dim[right]).max() <= 2
+
+
+@pytest.mark.parametrize("path", PATHS)
+def test_an_unlit_scan_shows_its_vertex_colours(host, path, tmp_path):
+    """A scanned room exported unlit and coloured per vertex (KHR_materials_unlit with
+    COLOR_0, no texture) showed as a flat white pane: the vertex colours multiplied the base
+    colour, which an unlit material gives the lamps as black. Its colours show, as the glTF
+    rule has it (base colour x its map x the vertex colours), and the Cycles job says so."""
+    import dataclasses
+
+    from app.lab.cycles_reference import material_for
+
+    unlit = {"name": "scan", "extensions": {"KHR_materials_unlit": {}}}
+    scene = load_scene(_two_quads_gltf(tmp_path, [RED_WALL, unlit], []))
+    scan = next(i for i, m in enumerate(scene.materials) if m.name == "scan")
+    meshes = [
+        dataclasses.replace(m, colors=np.tile(np.float32([0.1, 0.25, 0.9]), (len(m.positions), 1)))
+        if m.material == scan
+        else m
+        for m in scene.meshes
+    ]
+    img = draw(host, dataclasses.replace(scene, meshes=meshes), **path)
+    r, g, b = (int(v) for v in img[pixel_of(host, 0.0, 0.0, -2.0)])
+    assert b > 1.5 * g and g > 1.3 * r and b > 80, (r, g, b)  # before: (141, 141, 141)
+    assert material_for(scene.materials[scan])["unlit"] is True
+    assert "unlit" not in material_for(scene.materials[0])  # lit materials' jobs as before

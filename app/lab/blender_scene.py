@@ -196,11 +196,14 @@ def build_material(bpy, m: dict, job: dict):
     if max(emissive) > 0.0:
         glow = (*emissive, 1.0)
         et = m.get("emissive_texture")
+        emit = None
         if et is not None:
             tex = _texture_node(bpy, tree, job, et)
-            tree.links.new(
-                _multiply(tree, tex.outputs["Color"], glow), bsdf.inputs["Emission Color"]
-            )
+            emit = _multiply(tree, tex.outputs["Color"], glow)
+        if m.get("unlit"):  # KHR_materials_unlit: the vertex colours tint it, as ours
+            emit = _multiply(tree, vc.outputs["Color"], glow if emit is None else emit)
+        if emit is not None:
+            tree.links.new(emit, bsdf.inputs["Emission Color"])
         else:
             bsdf.inputs["Emission Color"].default_value = glow
         bsdf.inputs["Emission Strength"].default_value = 1.0

@@ -368,6 +368,7 @@ def material_for(m: Material, unlit_gain: float = 1.0) -> dict[str, Any]:
         "alpha_cutoff": float(m.alpha_cutoff),
         # casts no shadow in our renderer (render/shadows.py casts(): glowing, not glass)
         "shadowless": bool(any(m.emissive)) and m.alpha_mode != "BLEND",
+        **({"unlit": True} if m.unlit else {}),  # (absent otherwise: cached references stay)
     }
 
 

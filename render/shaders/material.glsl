@@ -6,6 +6,7 @@
 //   HAS_MR_MAP         metallic-roughness map (G roughness, B metalness), times the factors
 //   HAS_OCCLUSION_MAP  ambient occlusion map (R), mixed by the strength
 //   HAS_EMISSIVE_MAP   emissive map (sRGB), times the emissive factor
+//   UNLIT              KHR_materials_unlit: the glow (its colour) times the vertex colours
 //   ALPHA_MASK         cut out below u_alpha_cutoff (alpha_mask.glsl)
 //   OBJECT_TABLE       merged meshes: the TCR level and tint come per object from the vertex
 //                      stage's table row (v_object_row), not from u_level / u_tint
@@ -140,10 +141,14 @@ float surface_occlusion() {
 
 vec3 surface_emissive() {
 #ifdef HAS_EMISSIVE_MAP
-    return u_emissive * texture(u_emissive_map, v_uv).rgb;
+    vec3 e = u_emissive * texture(u_emissive_map, v_uv).rgb;
 #else
-    return u_emissive;
+    vec3 e = u_emissive;
 #endif
+#ifdef UNLIT
+    e *= v_color;  // KHR_materials_unlit: base colour x its map x the vertex colours
+#endif
+    return e;
 }
 
 float surface_sky() {
