@@ -205,9 +205,9 @@ class Session:
 
     def reason(self, index: int | None) -> LevelReason | None:
         """Why mesh ``index`` has its texture level (None without TCR data)."""
-        if self.tcr is None or index is None or not self.tcr.reasons:
+        if self.tcr is None or index is None:
             return None
-        return self.tcr.reasons[index] if 0 <= index < len(self.tcr.reasons) else None
+        return self.tcr.reason(index) if 0 <= index < len(self.tcr.n_levels) else None
 
     def current_key(self) -> PathKey:
         """The present pose and gaze as a path key (for recording)."""

@@ -650,3 +650,53 @@ def test_finest_per_texture() -> None:
     assert finest_per_texture(c.levels, [0, 0, 0, 0], 0) == []
     assert finest_per_texture([-3, 4], [0, 0], 1) == [0]  # a negative level counts as finest
     assert finest_per_texture([1], [0, 0, 0], 1) == [1]  # objects beyond the levels skipped
+
+
+@hsettings(derandomize=True, database=None, max_examples=200, deadline=None)
+@given(
+    distances=st.lists(
+        st.one_of(
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.floats(min_value=1e-9, max_value=1e4),
+        ),
+        min_size=1,
+        max_size=12,
+    ),
+    f_m=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(0.01, 2.0)),
+    moving=st.booleans(),
+    fixed=st.booleans(),
+    gazed=st.integers(-2, 13),
+    brightness=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(0.01, 4.0)),
+    preset=st.sampled_from(["custom", "ergonomics", "psychology"]),
+    flags=st.tuples(st.booleans(), st.booleans(), st.booleans(), st.booleans()),
+    bias=st.integers(0, 2),
+)
+def test_controller_levels_are_level_for_of_each_object(
+    distances, f_m, moving, fixed, gazed, brightness, preset, flags, bias
+) -> None:
+    """The controller works out every object's level at once (one LevelReason per object a
+    frame cost 2.5 ms in an 850-object room); each level and reason is level_for's."""
+    n = len(distances)
+    c = TcrController(np.zeros((n, 3)), np.zeros((n, 3)), [3 * i % 11 for i in range(n)], [""] * n)
+    c.box_distances = lambda eye: np.array(distances, np.float64)  # type: ignore[method-assign]
+    d, v, g, ll = flags
+    s = TcrSettings(enabled=True, preset=preset, use_d=d, use_v=v, use_g=g, use_l=ll)
+    s.f_m, s.level_bias = f_m, bias
+    levels = c.update(EYE, gazed, moving, fixed, brightness, s)
+    terms = terms_from_settings(s)
+    target = gazed if fixed and 0 <= gazed < n else -1
+    want = [
+        level_for(
+            x,
+            f_m,
+            c.n_levels[i],
+            moving=moving,
+            gazed_fixed=i == target,
+            brightness=brightness,
+            terms=terms,
+            bias=bias,
+        )
+        for i, x in enumerate(distances)
+    ]
+    assert levels.tolist() == [r.level for r in want]
+    assert c.reasons == want
