@@ -26,6 +26,7 @@ import numpy as np
 from app.governor_model import (
     CATEGORIES,
     CATEGORY_PRIORS,
+    CATEGORY_WORDS,
     ERROR_TABLE,
     FOVEA_WEIGHT,
     KNOBS,
@@ -37,6 +38,7 @@ from app.governor_model import (
     cost_factors,
     load_error_table,
     measured_knobs,
+    shown_value,
     step_weight,
 )
 from app.governor_programs import program_key, program_variants
@@ -198,6 +200,7 @@ class Governor:
     _recent: deque[float] = field(default_factory=lambda: deque(maxlen=SPREAD_FRAMES))
     _local: deque[float] = field(default_factory=lambda: deque(maxlen=8))  # raw frame times
     _skip: bool = False  # the next frame's time the host's own work made slower (skip_next)
+    at_floor: bool = False  # the last time over budget, no step was left to take
 
     # -- the knobs -----------------------------------------------------------------------------
     def _knobs(self, user: Settings) -> list[tuple[Knob, list[dict[str, Any]]]]:
@@ -280,6 +283,7 @@ class Governor:
         self._local.clear()
         self.overhead_ms = None
         self.ema_ms = None
+        self.at_floor = False
         self._forget_steps()
 
     def skip_next(self) -> None:
@@ -436,6 +440,7 @@ class Governor:
             )
         )
         del self.history[:-200]
+        self.at_floor = False
         self.since_change = 0
         self.ema_ms = None
 
@@ -463,6 +468,7 @@ class Governor:
         correction = (self.ema_ms or predicted) - predicted
         lowered: list[tuple[Knob, Any]] = []
         most = MAX_STEPS_FAR if (self.ema_ms or 0.0) > 1.5 * budget else MAX_STEPS_NEAR
+        self.at_floor = False
         while predicted + correction > AIM * budget and len(lowered) < most:
             knobs = [
                 (k, s) for k, s in self._knobs_at(user, position) if position.get(k.key, 0) < len(s)
@@ -474,6 +480,7 @@ class Governor:
             best = best or self._best_step(user, position, predicted, normal)
             best = best or self._best_step(user, position, predicted, fovea)
             if best is None:
+                self.at_floor = not lowered  # nothing left to take: the panel says so
                 break
             _, knob, j, predicted = best
             position[knob.key] = j
@@ -704,7 +711,7 @@ class Governor:
         if self.refining:
             lines.append("Standing still: full quality while the picture refines.")
             return lines
-        largest = _CATEGORY_WORDS.get(self.largest_cost(user), "drawing")
+        largest = CATEGORY_WORDS.get(self.largest_cost(user), "drawing")
         changed = False
         for knob, steps in self._knobs_all(user):
             i = self.position.get(knob.key, 0)
@@ -717,14 +724,20 @@ class Governor:
             if why is not None and why.action == "lower":
                 reason = (
                     f" — frame {why.frame_ms:.0f} ms over the {why.budget_ms:.0f} ms budget; "
-                    f"{_CATEGORY_WORDS.get(why.largest, why.largest)} was the largest cost"
+                    f"{CATEGORY_WORDS.get(why.largest, why.largest)} was the largest cost"
                 )
             elif why is not None and why.action == "trade":
                 reason = f" — in place of less {why.instead}, which lost more for its time"
-            lines.append(f"{knob.name} {_shown(knob.key, value)}{reason}")
+            lines.append(f"{knob.name} {shown_value(knob.key, value)}{reason}")
         if not changed:
             lines.append(
                 f"Full quality: the frame fits the budget ({largest} is the largest cost)."
+            )
+        elif self.at_floor and (self.ema_ms or 0.0) > WITHIN * self.budget_ms:
+            lines.append(
+                "Everything it can simplify is simplified, and this room still takes longer "
+                "than the budget on this computer: choose a lower frame rate (Settings, "
+                "Frame rate to hold) or a smaller window."
             )
         return lines
 
@@ -753,24 +766,6 @@ class Governor:
                 for d in self.history[-50:]
             ],
         }
-
-
-_CATEGORY_WORDS = {
-    "pixels": "screen effects",
-    "geometry": "drawing the surfaces",
-    "shading": "lighting",
-    "shadows": "shadow maps",
-    "output": "showing the picture",
-    "fixed": "daylight",
-}
-
-
-def _shown(key: str, value: Any) -> str:
-    if key == "render.scale":
-        return f"{round(100 * float(value))}%"
-    if key in ("cps.fovea_deg", "cps.deg_per_level"):
-        return f"{value:g}°"
-    return str(value)
 
 
 def _value_at(user: Settings, knob: Knob, j: int) -> Any:

@@ -310,3 +310,23 @@ def cost_factors(
         "reflections": s * s if values.get("render.reflections", "screen") == "screen" else 0.0,
         "fixed": 1.0,
     }
+
+
+#: The cost categories in the frame-rate panel's words.
+CATEGORY_WORDS = {
+    "pixels": "screen effects",
+    "geometry": "drawing the surfaces",
+    "shading": "lighting",
+    "shadows": "shadow maps",
+    "output": "showing the picture",
+    "fixed": "daylight",
+}
+
+
+def shown_value(key: str, value: Any) -> str:
+    """A knob's value as the panel shows it (the render scale in %, angles in degrees)."""
+    if key == "render.scale":
+        return f"{round(100 * float(value))}%"
+    if key in ("cps.fovea_deg", "cps.deg_per_level"):
+        return f"{value:g}°"
+    return str(value)

@@ -313,6 +313,20 @@ def test_panel_words_name_the_budget_and_the_reason():
     assert "Frame rate not held" in "\n".join(Governor().explain(walking("0")))
 
 
+def test_the_panel_says_when_nothing_is_left_to_simplify():
+    """A room this computer cannot draw at the asked rate however simple it gets: the
+    governor took every step, and the panel said only what it had lowered, as if it were
+    still holding the rate. It now says the rate cannot be held, and what to do."""
+    user = walking("30")
+    gov, times, _ = run(user, 160, load=lambda i: 40.0)  # 40x this synthetic room's cost
+    assert min(times[-20:]) > 1.1 * gov.budget_ms and gov.at_floor
+    text = "\n".join(gov.explain(user))
+    assert "Everything it can simplify is simplified" in text and "lower frame rate" in text
+    fits, _, _ = run(user, 160)  # the usual room: within budget, no such line
+    assert not fits.at_floor
+    assert "Everything it can simplify" not in "\n".join(fits.explain(user))
+
+
 # -- the render scale and its upscaler ----------------------------------------------------------
 W, H = 320, 180
 
