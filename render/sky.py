@@ -201,7 +201,11 @@ def frame_unlit_gain(daylight: object, settings, scene: object) -> float:
     scene's sky (the same bake it draws, baked again only when a ``sky.*`` setting changed)."""
     if not settings.sky.enabled or not isinstance(daylight, DaylightPass):
         return 1.0
-    return unlit_gain(daylight.update_sky(scene_sky(settings.sky, getattr(scene, "scene", scene))))
+    try:
+        bake = daylight.update_sky(scene_sky(settings.sky, getattr(scene, "scene", scene)))
+    except Exception:  # noqa: BLE001 - the daylight pass logs its own failure; glow as at night
+        return 1.0
+    return unlit_gain(bake)
 
 
 class SkyPass(RenderPass):
