@@ -39,6 +39,7 @@ SUPPORTED_REQUIRED_EXTENSIONS = frozenset(
         "KHR_materials_unlit",
         "KHR_materials_transmission",
         "EXT_texture_webp",  # Blender's "WebP" image format: Pillow decodes it
+        "EXT_meshopt_compression",  # gltfpack, glTF-Transform: meshoptimizer decodes it
     }
 )
 

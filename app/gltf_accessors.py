@@ -172,6 +172,8 @@ class Accessors:
         self.buffers = buffers
         self.accessors = as_list(doc.get("accessors"))
         self.views = as_list(doc.get("bufferViews"))
+        self._decoded: dict[int, bytes] = {}  # EXT_meshopt_compression views, decoded once
+        self.meshopt_required = "EXT_meshopt_compression" in as_list(doc.get("extensionsRequired"))
 
     # ---- what an accessor claims, checked ---------------------------------------------
 
@@ -266,6 +268,11 @@ class Accessors:
         view = self.views[view_index]
         if not isinstance(view, dict):
             raise GltfDataError(f"buffer view {view_index} is not an object")
+        packed = as_dict(as_dict(view.get("extensions")).get("EXT_meshopt_compression"))
+        if packed:
+            decoded = self._meshopt(view_index, packed)
+            if decoded is not None:
+                return view, decoded, 0, len(decoded)
         start = view.get("byteOffset", 0)
         length = view.get("byteLength")
         if not is_int(start) or start < 0 or not is_int(length) or length < 0:
@@ -277,6 +284,23 @@ class Accessors:
                 f"({start + length} bytes needed, {len(data)} there)"
             )
         return view, data, start, length
+
+    def _meshopt(self, index: int, ext: dict[str, Any]) -> bytes | None:
+        """An EXT_meshopt_compression view decoded by meshoptimizer (gltfpack's and
+        glTF-Transform's compression), or None to read the view's own (fallback) data where
+        the file does not require the extension and its compressed data cannot be decoded."""
+        if index in self._decoded:
+            return self._decoded[index]
+        try:
+            data = _meshopt_decode(self.buffers, ext)
+        except (GltfDataError, BufferUnavailable, RuntimeError, ValueError, TypeError) as exc:
+            if not self.meshopt_required:
+                return None  # the uncompressed fallback serves
+            raise GltfDataError(
+                f"buffer view {index}: its meshopt-compressed data cannot be decoded ({exc})"
+            ) from exc
+        self._decoded[index] = data
+        return data
 
     def view_bytes(self, view_index: Any, what: str) -> Blob:
         """The raw bytes of a buffer view (Draco payloads, embedded images)."""
@@ -308,6 +332,44 @@ class Accessors:
         if n and int(where.max()) >= len(data):
             raise GltfDataError(f"{what} replaces elements past its count")
         data[where] = values
+
+
+_MESHOPT_FILTERS = {"OCTAHEDRAL": "oct", "QUATERNION": "quat", "EXPONENTIAL": "exp"}
+
+
+def _meshopt_decode(buffers: Buffers, ext: dict[str, Any]) -> bytes:
+    """The bytes of one EXT_meshopt_compression view: ``count`` elements of ``byteStride``."""
+    import meshoptimizer  # the library the levels of detail use (app.lod)
+
+    fields = [ext.get("count"), ext.get("byteStride"), ext.get("byteOffset", 0)]
+    fields.append(ext.get("byteLength"))
+    if not all(is_int(v) and v >= 0 for v in fields):
+        raise GltfDataError("invalid count, byteStride, byteOffset or byteLength")
+    count, stride, offset, length = (int(v) for v in fields)
+    mode = ext.get("mode")
+    # meshopt packs a few times at best: a count far past its bytes is a broken or hostile file
+    # (checked before anything is allocated, as the accessors are)
+    if not 0 < stride <= 256 or count * stride > min(MAX_COUNT, 256 * (length + 256)):
+        raise GltfDataError(f"impossible count ({count}) or byteStride ({stride})")
+    source = buffers.get(ext.get("buffer"))
+    if offset + length > len(source):
+        raise GltfDataError("the compressed data reaches past the end of its buffer")
+    payload = np.frombuffer(source, np.uint8, count=length, offset=offset)
+    if mode == "ATTRIBUTES":
+        out = meshoptimizer.decode_vertex_buffer(count, stride, payload)
+        name = _MESHOPT_FILTERS.get(str(ext.get("filter", "NONE")))
+        if name is not None:
+            out = getattr(meshoptimizer, f"decode_filter_{name}")(out, count, stride)
+    elif mode == "TRIANGLES":
+        out = meshoptimizer.decode_index_buffer(count, stride, payload)
+    elif mode == "INDICES":
+        out = meshoptimizer.decode_index_sequence(count, stride, payload)
+    else:
+        raise GltfDataError(f"unknown mode {mode!r:.20}")
+    data = np.ascontiguousarray(out).tobytes()[: count * stride]
+    if len(data) != count * stride:
+        raise GltfDataError("the decoded data is shorter than its count says")
+    return data
 
 
 def to_float(raw: np.ndarray, normalized: bool) -> np.ndarray:
