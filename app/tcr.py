@@ -241,27 +241,27 @@ def distance_term(distance_m: float, f_m: float) -> int:
       (d + f) / f as f grows), an infinite one still the coarsest level.
     """
     d = float(distance_m)
-    f = float(f_m)
     if math.isnan(d) or d <= 0.0:
         return 0
-    if math.isnan(f) or f <= 0.0:
-        f = F_FALLBACK_M
-    elif math.isinf(f):
-        f = 1.7976931348623157e308
     if math.isinf(d):
         return FAR_LEVEL
-    return max(0, _floor_log2_ratio(d, f))
+    return max(0, _floor_log2_ratio(d, _focal_length(f_m)))
+
+
+def _focal_length(f_m: float) -> float:
+    """f for :func:`distance_term`: NaN, 0 or negative -> F_FALLBACK_M, +inf -> the largest
+    finite double."""
+    f = float(f_m)
+    if math.isnan(f) or f <= 0.0:
+        return F_FALLBACK_M
+    return 1.7976931348623157e308 if math.isinf(f) else f
 
 
 def distance_terms(distances_m: np.ndarray, f_m: float) -> np.ndarray:
     """:func:`distance_term` of each distance at once (int64), the same fallbacks and the
     same exact floor (``frexp``): a real room's hundreds of objects a frame."""
     d = np.asarray(distances_m, np.float64).reshape(-1)
-    f = float(f_m)
-    if math.isnan(f) or f <= 0.0:
-        f = F_FALLBACK_M
-    elif math.isinf(f):
-        f = 1.7976931348623157e308
+    f = _focal_length(f_m)
     out = np.zeros(len(d), np.int64)
     ok = np.isfinite(d) & (d > 0.0)
     a, p = np.frexp(d[ok])
